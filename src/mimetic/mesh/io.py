@@ -1,0 +1,918 @@
+"""Read and write meshes (.obj, .ply, .stl, .glb, .gltf) without changing their vertex order.
+
+Every rig element refers to vertices by index, so a mesh must come back from disk with exactly
+the vertices, in exactly the order, it was written with. What each format keeps:
+
+========  =============  ==========  ===========================  ==================
+format    vertex order   precision   parts                        colours / units
+========  =============  ==========  ===========================  ==================
+.obj      exact          float64     ``g`` groups (``o`` too)     ``v x y z r g b`` / ``# units: cm``
+.ply      exact          float64     not stored (merged)          uchar RGB / ``comment units cm``
+.glb      exact          float32     one node per part            COLOR_0 / mesh ``extras.units``
+.gltf     exact          float32     one node per part            COLOR_0 / mesh ``extras.units``
+.stl      first use      float32     not stored (merged)          none / none
+========  =============  ==========  ===========================  ==================
+
+OBJ is read and written by mimetic itself: trimesh 5.2 splits OBJ vertices by their ``vt``/``vn``
+indices (or, with ``maintain_order=True``, drops unused trailing vertices), and returns groups in
+reverse order, merged by name. PLY is read by trimesh and written by mimetic (trimesh writes
+float32). glTF is read and written by trimesh with processing off; node order comes from the
+file's own JSON, because trimesh's scene graph lists nodes in reverse. STL has no vertex
+indices at all: loading merges bit-identical corners in order of first use.
+"""
+
+from __future__ import annotations
+
+import copy
+import io
+import itertools
+import json
+import logging
+import os
+import re
+import struct
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mimetic.atomic import atomic_write_bytes
+from mimetic.errors import MeshError, MimeticWarning
+from mimetic.mesh.model import Mesh
+from mimetic.mesh.units import check_units, detect_units, largest_extent, units_for_extent
+from mimetic.mesh.validate import MIN_FACES
+
+log = logging.getLogger(__name__)
+
+SUPPORTED_FORMATS = (".obj", ".ply", ".stl", ".glb", ".gltf")
+"""File extensions :func:`load_mesh` and :func:`save_mesh` accept (case-insensitive)."""
+
+DEFAULT_COLOR = 0.6
+"""Grey given to vertices of glTF nodes without COLOR_0 when other nodes have it."""
+
+_UNIT_ALIASES = {
+    **{u: u for u in ("mm", "cm", "dm", "m")},
+    **{
+        f"{p}{s}": u
+        for p, u in (("millimet", "mm"), ("centimet", "cm"), ("decimet", "dm"), ("met", "m"))
+        for s in ("er", "ers", "re", "res")
+    },
+}
+
+
+@dataclass
+class _Loaded:
+    """What a format reader found, before checks: arrays in file order."""
+
+    vertices: np.ndarray  # (n, 3) float64
+    faces: np.ndarray  # (m, 3) int64
+    parts: dict[str, np.ndarray] = field(default_factory=dict)
+    colors: np.ndarray | None = None  # (n, 3) float32 in [0, 1]
+    units: str | None = None  # as written in the file, not yet checked
+
+
+# --- public API -----------------------------------------------------------------------------------
+
+
+def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: bool = True) -> Mesh:
+    """Read a triangle mesh, keeping its vertices exactly as stored (no merging or reordering).
+
+    Parameters
+    ----------
+    path : path-like
+        A .obj, .ply, .stl, .glb or .gltf file (a .gltf may refer to .bin files beside it).
+    units : {"mm", "cm", "dm", "m"}, optional
+        The unit the coordinates are in. It wins over anything else; the coordinates are never
+        rescaled (use :func:`~mimetic.mesh.units.convert_units` for that). When omitted, the units
+        written in the file are used (see the module table), else :func:`detect_units` guesses
+        them from the head's size.
+    check : bool
+        When True (default), reject meshes every later step would fail on: non-finite
+        coordinates, fewer than ``MIN_FACES`` faces, or units that are neither given, stored nor
+        detectable. When False, such meshes load (``units`` may be None) so that
+        :func:`~mimetic.mesh.validate.validate_mesh` can report on them.
+
+    Returns
+    -------
+    mesh : Mesh
+        ``vertices`` (n, 3) float64 in file order, ``faces`` (m, 3) int64 in file order (OBJ
+        polygons are fan-triangulated in place), ``parts`` from OBJ groups or glTF nodes
+        (``{}`` for a single geometry), per-vertex ``colors`` when stored, and ``units``.
+
+    Raises
+    ------
+    MeshError
+        Naming the file: it is missing, has an unsupported extension, is not a mesh of its
+        format, is truncated or corrupt, has no faces or face indices out of range, or (with
+        ``check``) fails the checks above.
+    """
+    src = str(path)
+    path = Path(path)
+    ext = _extension(path, src)
+    if units is not None:
+        units = check_units(units)
+    data = _read_bytes(path, src)
+    reader = {".obj": _read_obj, ".ply": _read_ply, ".stl": _read_stl, ".glb": _read_glb, ".gltf": _read_gltf}
+    loaded = reader[ext](data, src, path)
+
+    vertices = np.ascontiguousarray(loaded.vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
+    n, m = len(vertices), len(faces)
+    if m == 0:
+        raise MeshError(
+            f"{src}: contains no faces ({n} vertices): it is empty or a point cloud. mimetic needs a "
+            "triangle surface; export the mesh with its faces."
+        )
+    if faces.min() < 0 or faces.max() >= n:
+        bad = int(np.flatnonzero((faces < 0).any(axis=1) | (faces >= n).any(axis=1))[0])
+        raise MeshError(
+            f"{src}: face {bad} refers to vertex {faces[bad].tolist()} but the file has {n} vertices "
+            "(indices 0..n-1). The file is corrupt; re-export it."
+        )
+    if check:
+        _check_loaded(vertices, m, src)
+    units = units or _file_units(loaded.units, vertices, src)
+    if units is None:
+        extent = largest_extent(vertices)
+        units = units_for_extent(extent)
+        if units is None and check:
+            try:
+                detect_units(vertices)
+            except MeshError as error:
+                raise MeshError(f"{src}: {error}") from None
+    mesh = Mesh(vertices, faces, loaded.parts, loaded.colors, units)
+    log.info("loaded %s: %d vertices, %d faces, %d parts, units %s", src, n, m, len(mesh.parts), units)
+    return mesh
+
+
+def save_mesh(mesh: Mesh, path: str | os.PathLike[str]) -> Path:
+    """Write ``mesh`` to ``path`` atomically, in the format its extension names.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Written in its own vertex and face order.
+    path : path-like
+        .obj (parts become ``g`` groups; a face in several parts gets ``g a b``), .ply or .stl
+        (one merged surface, parts dropped with a log warning), .glb or .gltf (one named node per
+        part; the .gltf embeds its buffer). ``mesh.units`` is recorded where the format allows.
+
+    Returns
+    -------
+    path : Path
+        The file written.
+
+    Raises
+    ------
+    MeshError
+        Unsupported extension; a part name an OBJ group cannot hold (empty or with spaces); for
+        glTF, parts that are not consecutive blocks of faces and vertices.
+    WriteError
+        The folder does not exist or is not writable. The target is never left half-written.
+
+    Warns
+    -----
+    MimeticWarning
+        For .stl when the mesh read back would not have the same vertices in the same order.
+    """
+    src = str(path)
+    path = Path(path)
+    ext = _extension(path, src)
+    encoder = {
+        ".obj": _encode_obj,
+        ".ply": _encode_ply,
+        ".stl": _encode_stl,
+        ".glb": _encode_glb,
+        ".gltf": _encode_gltf,
+    }
+    data = encoder[ext](mesh, src)
+    atomic_write_bytes(path, data)
+    log.info("wrote %s: %d vertices, %d faces", src, mesh.n_vertices, mesh.n_faces)
+    return path
+
+
+# --- shared helpers -------------------------------------------------------------------------------
+
+
+def _extension(path: Path, src: str) -> str:
+    ext = path.suffix.lower()
+    if ext not in SUPPORTED_FORMATS:
+        shown = f"'{path.suffix}'" if path.suffix else "no extension"
+        raise MeshError(
+            f"{src}: unsupported mesh format ({shown}); supported: {', '.join(SUPPORTED_FORMATS)}. "
+            "Convert the file (e.g. in Blender) or fix its extension."
+        )
+    return ext
+
+
+def _read_bytes(path: Path, src: str) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise MeshError(
+            f"{src}: no such file (looked in {path.absolute().parent}). Check the path."
+        ) from None
+    except IsADirectoryError:
+        raise MeshError(
+            f"{src}: is a folder, not a mesh file. Give the path of a mesh file inside it."
+        ) from None
+    except PermissionError:
+        raise MeshError(f"{src}: permission denied. Make the file readable.") from None
+    except OSError as error:
+        raise MeshError(f"{src}: cannot read the file ({error.strerror or error}).") from None
+
+
+def _check_loaded(vertices: np.ndarray, n_faces: int, src: str) -> None:
+    bad = ~np.isfinite(vertices).all(axis=1)
+    if bad.any():
+        raise MeshError(
+            f"{src}: {int(bad.sum())} of {len(vertices)} vertices have NaN or infinite coordinates "
+            f"(first: vertex {int(np.argmax(bad))}). Fix or delete them in your modelling tool, or load "
+            "with check=False and inspect the mesh with validate_mesh."
+        )
+    if n_faces < MIN_FACES:
+        raise MeshError(
+            f"{src}: only {n_faces} face{'s' * (n_faces != 1)}; a head mesh needs at least {MIN_FACES}. "
+            "Check that this is the right file, or load with check=False."
+        )
+
+
+def _file_units(raw: str | None, vertices: np.ndarray, src: str) -> str | None:
+    """The units written in a file, normalised; None (and a log line) when absent or unknown."""
+    if raw is None:
+        return None
+    units = _UNIT_ALIASES.get(raw.strip().lower())
+    if units is None:
+        log.warning("%s: ignoring units %r recorded in the file (not one of mm, cm, dm, m)", src, raw)
+        return None
+    detected = units_for_extent(largest_extent(vertices))
+    if detected is not None and detected != units:
+        log.warning(
+            "%s: the file says units %s but its size suggests %s; using %s", src, units, detected, units
+        )
+    return units
+
+
+def _colors_from_u8(rgba: np.ndarray) -> np.ndarray:
+    """(n, 3 or 4) uint8 → (n, 3) float32 in [0, 1]."""
+    return (np.asarray(rgba)[:, :3].astype(np.float32) / np.float32(255.0)).astype(np.float32)
+
+
+def _colors_to_u8(colors: np.ndarray) -> np.ndarray:
+    """(n, 3) float in [0, 1] → (n, 3) uint8; NaN becomes 0."""
+    c = np.nan_to_num(np.asarray(colors, dtype=np.float64), nan=0.0)
+    return np.round(np.clip(c, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
+def _trimesh_scene(data: bytes, file_type: str, src: str, path: Path, **kwargs):
+    """Parse ``data`` with trimesh (processing off); any failure becomes a MeshError."""
+    import trimesh
+
+    resolver = trimesh.resolvers.FilePathResolver(str(path.absolute()))
+    try:
+        return trimesh.load_scene(
+            io.BytesIO(data), file_type=file_type, resolver=resolver, process=False, **kwargs
+        )
+    except Exception as error:  # trimesh raises ValueError, KeyError, IndexError, struct.error, ...
+        raise MeshError(
+            f"{src}: not a readable {file_type.upper()} file ({type(error).__name__}: {error}). "
+            "Check that it is complete and really in this format; re-export it if it was truncated."
+        ) from error
+
+
+def _trimesh_colors(geometry) -> np.ndarray | None:
+    """Per-vertex colours (n, 3) float32 of a trimesh geometry, or None when it has none."""
+    visual = geometry.visual
+    if visual is None:
+        return None
+    if visual.kind == "vertex":
+        return _colors_from_u8(visual.vertex_colors)
+    color = getattr(visual, "vertex_attributes", {}).get("color")
+    if color is not None and len(color) == len(geometry.vertices):
+        color = np.asarray(color)
+        return (
+            _colors_from_u8(color)
+            if color.dtype == np.uint8
+            else np.clip(color[:, :3], 0, 1).astype(np.float32)
+        )
+    return None
+
+
+# --- OBJ ----------------------------------------------------------------------------------------
+
+_OBJ_KEYWORDS = frozenset(
+    "v vt vn vp f l p o g s usemtl mtllib cstype deg bmat step curv curv2 surf parm trim hole scrv sp "
+    "end con mg bevel c_interp d_interp lod shadow_obj trace_obj maplib usemap".split()
+)
+_UNITS_COMMENT = re.compile(r"#\s*units\s*[:=]\s*(\S+)\s*$", re.IGNORECASE)
+_AFTER_SLASH = re.compile(r"/\S*")
+
+
+def _read_obj(data: bytes, src: str, path: Path) -> _Loaded:
+    """Parse a Wavefront OBJ: ``v`` (optionally with r g b), ``f`` (any polygon), ``o`` and ``g``.
+
+    A face's part is its current ``g`` group(s) (``g a b`` puts it in both), else its current ``o``
+    object; a new ``o`` ends the current groups and a bare ``g`` ends them too. ``vt``, ``vn``,
+    materials and free-form geometry are ignored.
+    """
+    if b"\x00" in data[:8192]:
+        raise MeshError(
+            f"{src}: not a Wavefront OBJ file (it is binary; OBJ is text). Check the file's format."
+        )
+    text = data.decode("utf-8", errors="replace").replace("\\\r\n", " ").replace("\\\n", " ")
+    v_rows: list[str] = []
+    f_rows: list[str] = []
+    f_nv: list[int] = []  # vertices defined before each face line (for negative indices)
+    f_key: list[int] = []  # part key of each face line
+    keys: dict[tuple[str, ...], int] = {(): 0}
+    obj: str | None = None
+    groups: tuple[str, ...] = ()
+    key_id = 0
+    units: str | None = None
+    unknown: tuple[int, str] | None = None
+    for lineno, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s:
+            continue
+        if s[0] == "#":
+            if units is None and (match := _UNITS_COMMENT.match(s)):
+                units = match.group(1)
+            continue
+        head, *tail = s.split(None, 1)
+        rest = tail[0] if tail else ""
+        if head == "v":
+            v_rows.append(rest)
+        elif head == "f":
+            f_rows.append(rest)
+            f_nv.append(len(v_rows))
+            f_key.append(key_id)
+        elif head in ("o", "g"):
+            if head == "o":
+                obj, groups = rest.strip() or None, ()
+            else:
+                groups = tuple(rest.split())
+            key = groups or ((obj,) if obj else ())
+            key_id = keys.setdefault(key, len(keys))
+        elif head not in _OBJ_KEYWORDS and unknown is None:
+            unknown = (lineno, s)
+
+    if not v_rows and not f_rows:
+        if unknown is not None:
+            raise MeshError(
+                f"{src}: not a Wavefront OBJ file: line {unknown[0]} ({unknown[1][:40]!r}) is not an OBJ "
+                "statement. Check that the file is a mesh and that its extension is right."
+            )
+        raise MeshError(
+            f"{src}: the OBJ file has no vertices and no faces (empty mesh). Re-export it with its geometry."
+        )
+    if unknown is not None:
+        log.debug("%s: ignoring unknown OBJ statements, first at line %d: %r", src, *unknown)
+    vertices, colors = _obj_vertices(v_rows, src, text)
+    faces, tri_key = _obj_faces(f_rows, f_nv, f_key, len(vertices), src, text)
+
+    members: dict[str, list[np.ndarray]] = {}
+    for key, kid in keys.items():
+        ids = np.flatnonzero(tri_key == kid) if key else ()
+        if len(ids):
+            for name in key:
+                members.setdefault(name, []).append(ids)
+    parts = {name: np.sort(np.concatenate(ids)) for name, ids in members.items()}
+    parts = dict(sorted(parts.items(), key=lambda item: int(item[1][0])))
+    return _Loaded(vertices, faces, parts, colors, units)
+
+
+def _nth_line(text: str, keyword: str, k: int) -> int:
+    """Line number (1-based) of the k-th (0-based) line starting with ``keyword``; for error messages."""
+    count = 0
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if line.split(None, 1)[:1] == [keyword]:
+            if count == k:
+                return lineno
+            count += 1
+    return -1
+
+
+def _obj_vertices(rows: list[str], src: str, text: str) -> tuple[np.ndarray, np.ndarray | None]:
+    tokens = [r.split() for r in rows]
+    lengths = np.fromiter(map(len, tokens), dtype=np.int64, count=len(tokens))
+    if len(tokens) == 0:
+        return np.zeros((0, 3)), None
+    if (short := np.flatnonzero(lengths < 3)).size:
+        k = int(short[0])
+        raise MeshError(f"{src}: line {_nth_line(text, 'v', k)}: a vertex needs x y z; got 'v {rows[k]}'.")
+    try:
+        xyz = np.array(tokens if (lengths == 3).all() else [t[:3] for t in tokens], dtype=np.float64)
+    except ValueError:
+        k = next(i for i, t in enumerate(tokens) if not _floats_ok(t[:3]))
+        raise MeshError(
+            f"{src}: line {_nth_line(text, 'v', k)}: cannot read 'v {rows[k]}' as numbers."
+        ) from None
+    colors = None
+    if lengths.min() >= 6:
+        try:
+            rgb = np.array([t[3:6] for t in tokens], dtype=np.float64)
+        except ValueError:
+            rgb = None
+        if rgb is not None and np.isfinite(rgb).all():
+            if rgb.max() > 1.0:  # 0-255 colours
+                rgb = rgb / 255.0
+            colors = np.clip(rgb, 0.0, 1.0).astype(np.float32)
+    return xyz, colors
+
+
+def _floats_ok(tokens: list[str]) -> bool:
+    try:
+        [float(t) for t in tokens]
+    except ValueError:
+        return False
+    return True
+
+
+def _obj_faces(
+    rows: list[str], nv_before: list[int], key: list[int], n: int, src: str, text: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Fan-triangulated faces (t, 3) int64 (0-based) and the part key (t,) of each triangle."""
+    if not rows:
+        return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    tokens = [r.split() for r in _AFTER_SLASH.sub("", "\n".join(rows)).split("\n")]  # keep v of v/vt/vn
+    counts = np.fromiter(map(len, tokens), dtype=np.int64, count=len(tokens))
+    if (short := np.flatnonzero(counts < 3)).size:
+        k = int(short[0])
+        raise MeshError(
+            f"{src}: line {_nth_line(text, 'f', k)}: a face needs at least 3 vertices; got 'f {rows[k]}'."
+        )
+    try:
+        flat = np.array(list(itertools.chain.from_iterable(tokens)), dtype=np.int64)
+    except ValueError:
+        k = next(i for i, t in enumerate(tokens) if not all(x.lstrip("-").isdigit() for x in t))
+        raise MeshError(
+            f"{src}: line {_nth_line(text, 'f', k)}: cannot read 'f {rows[k]}' as vertex indices."
+        ) from None
+    before = np.repeat(np.asarray(nv_before, dtype=np.int64), counts)  # (sum counts,)
+    index = np.where(flat > 0, flat - 1, before + flat)  # 1-based or relative (-1 = last)
+    if (bad := np.flatnonzero((flat == 0) | (index < 0) | (index >= n))).size:
+        k = int(np.searchsorted(np.cumsum(counts), bad[0], side="right"))
+        raise MeshError(
+            f"{src}: line {_nth_line(text, 'f', k)}: face 'f {rows[k]}' refers to a vertex that does not "
+            f"exist (the file has {n}; OBJ indices start at 1; negative ones count back from the latest)."
+        )
+    # Fan triangulation: polygon p with c corners starting at s gives (s, s+i, s+i+1), i = 1..c-2.
+    start = np.cumsum(counts) - counts  # (P,)
+    n_tri = counts - 2  # (P,)
+    poly = np.repeat(np.arange(len(counts)), n_tri)  # (T,)
+    i = np.arange(len(poly)) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri) + 1
+    s = start[poly]
+    faces = np.column_stack([index[s], index[s + i], index[s + i + 1]])  # (T, 3)
+    if len(faces) > len(counts):
+        log.debug("%s: fan-triangulated %d polygons", src, int((counts > 3).sum()))
+    return faces, np.asarray(key, dtype=np.int64)[poly]
+
+
+def _encode_obj(mesh: Mesh, src: str) -> bytes:
+    names = [name for name, ids in mesh.parts.items() if len(ids)]
+    for name in names:
+        if not name or any(c.isspace() for c in name):
+            raise MeshError(
+                f"{src}: part name {name!r} cannot be an OBJ group name (empty or containing spaces). "
+                "Rename the part, e.g. with underscores."
+            )
+    if len(names) < len(mesh.parts):
+        log.warning("%s: empty parts are not stored in OBJ: %s", src, sorted(set(mesh.parts) - set(names)))
+    out = ["# written by mimetic"]
+    if mesh.units:
+        out.append(f"# units: {mesh.units}")
+    v = mesh.vertices.tolist()
+    if mesh.colors is not None:
+        c = mesh.colors.astype(np.float64).tolist()  # float32 values, printed exactly
+        out.extend(
+            f"v {x!r} {y!r} {z!r} {r!r} {g!r} {b!r}" for (x, y, z), (r, g, b) in zip(v, c, strict=True)
+        )
+    else:
+        out.extend(f"v {x!r} {y!r} {z!r}" for x, y, z in v)
+    faces = (mesh.faces + 1).tolist()
+    member = np.zeros((mesh.n_faces, len(names)), dtype=bool)  # (m, P)
+    for k, name in enumerate(names):
+        member[mesh.parts[name], k] = True
+    changes = np.flatnonzero((member[1:] != member[:-1]).any(axis=1)) + 1
+    bounds = [0, *changes.tolist(), mesh.n_faces]
+    current: list[str] = []
+    for lo, hi in itertools.pairwise(bounds):
+        group = [names[k] for k in np.flatnonzero(member[lo])] if names else []
+        if group != current:
+            out.append("g " + " ".join(group) if group else "g")
+            current = group
+        out.extend(f"f {a} {b} {c}" for a, b, c in faces[lo:hi])
+    out.append("")
+    return "\n".join(out).encode("utf-8")
+
+
+# --- PLY ----------------------------------------------------------------------------------------
+
+_PLY_UNITS = re.compile(rb"^comment\s+units\s+(\S+)\s*$", re.MULTILINE)
+
+
+def _read_ply(data: bytes, src: str, path: Path) -> _Loaded:
+    if not data.startswith(b"ply"):
+        raise MeshError(f"{src}: not a PLY file (it does not start with 'ply'). Check the file's format.")
+    end = data.find(b"end_header")
+    if end < 0:
+        raise MeshError(f"{src}: the PLY header has no 'end_header'; the file is truncated or corrupt.")
+    match = _PLY_UNITS.search(data[:end])
+    scene = _trimesh_scene(data, "ply", src, path)
+    loaded = _single_geometry(scene, src, "PLY")
+    loaded.units = match.group(1).decode("ascii", "replace") if match else None
+    return loaded
+
+
+def _single_geometry(scene, src: str, fmt: str) -> _Loaded:
+    import trimesh
+
+    geometries = [g for g in scene.geometry.values()]
+    if not geometries:
+        raise MeshError(f"{src}: the {fmt} file contains no geometry (empty mesh).")
+    if len(geometries) > 1 or not isinstance(geometries[0], trimesh.Trimesh):
+        g = geometries[0]
+        if len(geometries) == 1 and isinstance(g, trimesh.PointCloud):
+            return _Loaded(np.asarray(g.vertices, dtype=np.float64), np.zeros((0, 3), np.int64))
+        raise MeshError(
+            f"{src}: expected one triangle mesh in the {fmt} file; found {len(geometries)} geometries."
+        )
+    g = geometries[0]
+    return _Loaded(np.asarray(g.vertices, np.float64), np.asarray(g.faces, np.int64), {}, _trimesh_colors(g))
+
+
+def _encode_ply(mesh: Mesh, src: str) -> bytes:
+    """Binary little-endian PLY with float64 positions (trimesh's own writer uses float32)."""
+    _warn_parts_dropped(mesh, src, "PLY")
+    vertex_dtype = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+    if mesh.colors is not None:
+        vertex_dtype += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    vertex = np.zeros(mesh.n_vertices, dtype=vertex_dtype)
+    for d, axis in enumerate("xyz"):
+        vertex[axis] = mesh.vertices[:, d]
+    if mesh.colors is not None:
+        rgb = _colors_to_u8(mesh.colors)
+        for d, channel in enumerate(("red", "green", "blue")):
+            vertex[channel] = rgb[:, d]
+    face = np.zeros(mesh.n_faces, dtype=[("count", "u1"), ("index", "<i4", (3,))])
+    face["count"] = 3
+    face["index"] = mesh.faces
+    header = ["ply", "format binary_little_endian 1.0", "comment written by mimetic"]
+    if mesh.units:
+        header.append(f"comment units {mesh.units}")
+    header.append(f"element vertex {mesh.n_vertices}")
+    header += [f"property {'double' if t == '<f8' else 'uchar'} {name}" for name, t in vertex_dtype]
+    header += [f"element face {mesh.n_faces}", "property list uchar int vertex_indices", "end_header", ""]
+    return "\n".join(header).encode("ascii") + vertex.tobytes() + face.tobytes()
+
+
+def _warn_parts_dropped(mesh: Mesh, src: str, fmt: str) -> None:
+    if mesh.parts:
+        log.warning(
+            "%s: %s cannot store parts; writing one merged surface (parts %s dropped)",
+            src,
+            fmt,
+            list(mesh.parts),
+        )
+
+
+# --- STL ----------------------------------------------------------------------------------------
+
+
+def _read_stl(data: bytes, src: str, path: Path) -> _Loaded:
+    binary = len(data) >= 84 and len(data) == 84 + 50 * struct.unpack_from("<I", data, 80)[0]
+    if not binary:
+        head = data.lstrip()[:5].lower()
+        if head != b"solid" or b"\x00" in data[:4096]:
+            raise MeshError(
+                f"{src}: not an STL file (neither a binary STL of the size its header gives, nor text "
+                "starting with 'solid'). The file is truncated or in another format."
+            )
+    scene = _trimesh_scene(data, "stl", src, path)
+    import trimesh
+
+    geometries = [g for g in scene.geometry.values() if isinstance(g, trimesh.Trimesh)]
+    if not geometries:
+        return _Loaded(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+    corners = np.concatenate([np.asarray(g.vertices)[np.asarray(g.faces)].reshape(-1, 3) for g in geometries])
+    vertices, faces = _merge_corners(corners)
+    parts: dict[str, np.ndarray] = {}
+    if len(geometries) > 1:
+        offsets = np.cumsum([0] + [len(g.faces) for g in geometries])
+        parts = {
+            str(name): np.arange(lo, hi)
+            for name, lo, hi in zip(scene.geometry, offsets, offsets[1:], strict=False)
+        }
+    return _Loaded(vertices, faces, parts)
+
+
+def _merge_corners(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indexed mesh from triangle corners (3m, 3): equal corners merged, in order of first use.
+
+    Returns vertices (n, 3) float64 and faces (m, 3) int64. Sorts rows with ``np.lexsort``
+    (``np.unique(axis=0)`` is several times slower).
+    """
+    c = np.asarray(corners, dtype=np.float64)
+    order = np.lexsort((c[:, 2], c[:, 1], c[:, 0]))  # stable: equal rows keep file order
+    sc = c[order]
+    new = np.r_[True, (sc[1:] != sc[:-1]).any(axis=1)]  # (3m,) starts a new distinct row
+    group = np.cumsum(new) - 1  # distinct-row id of each sorted corner
+    first = order[new]  # first use of each distinct row
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    inverse = np.empty(len(c), dtype=np.int64)
+    inverse[order] = rank[group]
+    return c[np.sort(first)], inverse.reshape(-1, 3)
+
+
+def _encode_stl(mesh: Mesh, src: str) -> bytes:
+    import trimesh
+
+    _warn_parts_dropped(mesh, src, "STL")
+    stored = mesh.vertices.astype(np.float32)[mesh.faces].reshape(-1, 3)
+    vertices, faces = _merge_corners(stored)
+    if len(vertices) != mesh.n_vertices or not np.array_equal(faces, mesh.faces):
+        warnings.warn(
+            f"{src}: STL stores bare triangles, so this mesh will read back with {len(vertices)} vertices in "
+            f"order of first use, not its {mesh.n_vertices} in their own order. Save as .ply or .obj to keep "
+            "vertex order.",
+            MimeticWarning,
+            stacklevel=3,
+        )
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False, validate=False)
+    return tm.export(file_type="stl")
+
+
+# --- glTF -----------------------------------------------------------------------------------------
+
+_GLB_MAGIC = b"glTF"
+_CHUNK_JSON = 0x4E4F534A
+
+
+def _read_glb(data: bytes, src: str, path: Path) -> _Loaded:
+    if len(data) < 20 or data[:4] != _GLB_MAGIC:
+        raise MeshError(f"{src}: not a GLB file (it does not start with 'glTF'). Check the file's format.")
+    version, total, json_length, json_type = struct.unpack_from("<IIII", data, 4)
+    if version != 2:
+        raise MeshError(f"{src}: glTF version {version}; only glTF 2.0 is supported. Re-export as glTF 2.0.")
+    if total > len(data) or 20 + json_length > total or json_type != _CHUNK_JSON:
+        raise MeshError(
+            f"{src}: the GLB is truncated or corrupt (its header promises {total} bytes; the file has "
+            f"{len(data)}). Re-export or re-download it."
+        )
+    header = _parse_gltf_json(data[20 : 20 + json_length], src)
+    rewritten, plan = _plan_gltf(header)
+    text = json.dumps(rewritten).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    rest = data[20 + json_length : total]
+    glb = (
+        struct.pack("<4sIIII", _GLB_MAGIC, 2, 20 + len(text) + len(rest), len(text), _CHUNK_JSON)
+        + text
+        + rest
+    )
+    scene = _trimesh_scene(glb, "glb", src, path, skip_materials=True)
+    return _gltf_to_loaded(scene, header, plan, src)
+
+
+def _read_gltf(data: bytes, src: str, path: Path) -> _Loaded:
+    header = _parse_gltf_json(data, src)
+    rewritten, plan = _plan_gltf(header)
+    scene = _trimesh_scene(json.dumps(rewritten).encode("utf-8"), "gltf", src, path, skip_materials=True)
+    return _gltf_to_loaded(scene, header, plan, src)
+
+
+def _parse_gltf_json(data: bytes, src: str) -> dict:
+    try:
+        header = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise MeshError(
+            f"{src}: not a glTF file (its JSON is unreadable: {error}). The file is corrupt."
+        ) from None
+    if not isinstance(header, dict) or "asset" not in header:
+        raise MeshError(f"{src}: not a glTF file (its JSON has no 'asset'). Check the file's format.")
+    return header
+
+
+@dataclass(frozen=True)
+class _Piece:
+    """One glTF (node, primitive) pair in the loaded scene."""
+
+    rank: int  # depth-first position of the node in the scene
+    node: int  # node index in the file
+    mesh: int  # mesh index in the file
+    primitive: int  # primitive index within the mesh
+
+
+def _plan_gltf(header: dict) -> tuple[dict, dict[str, _Piece]]:
+    """A copy of ``header`` that trimesh loads with predictable names, and what each name means.
+
+    trimesh names scene nodes after glTF node names (made unique), lists them in reverse, and
+    names the extra frames of multi-primitive meshes with random ids. Here every primitive gets a
+    mesh of its own and every (node, primitive) a node named ``mimetic_<node>_<primitive>``.
+    """
+    h = copy.deepcopy(header)
+    meshes = h.get("meshes") or []
+    nodes = h.setdefault("nodes", [])
+    if not nodes and meshes:
+        nodes.extend({"mesh": i} for i in range(len(meshes)))
+    if not h.get("scenes"):
+        children = {c for node in nodes for c in node.get("children", [])}
+        h["scenes"], h["scene"] = [{"nodes": [i for i in range(len(nodes)) if i not in children]}], 0
+    roots = h["scenes"][h.get("scene", 0)].get("nodes", [])
+
+    rank: dict[int, int] = {}
+    stack = list(reversed(roots))
+    while stack:  # depth-first, file order
+        b = stack.pop()
+        if b in rank or not 0 <= b < len(nodes):
+            continue
+        rank[b] = len(rank)
+        stack.extend(reversed(nodes[b].get("children", [])))
+
+    new_meshes, first = [], []
+    for m in meshes:
+        first.append(len(new_meshes))
+        new_meshes.extend({"primitives": [p]} for p in m.get("primitives", []))
+    for k, m in enumerate(new_meshes):
+        m["name"] = f"mimetic_mesh_{k}"
+    h["meshes"] = new_meshes
+
+    plan: dict[str, _Piece] = {}
+    for b in range(len(nodes)):
+        node = nodes[b]
+        node["name"] = f"mimetic_node_{b}"
+        i = node.get("mesh")
+        if i is None:
+            continue
+        if not isinstance(i, int) or not 0 <= i < len(meshes) or not meshes[i].get("primitives"):
+            node.pop("mesh", None)
+            continue
+        node["name"] = f"mimetic_{b}_0"
+        node["mesh"] = first[i]
+        plan[node["name"]] = _Piece(rank.get(b, -1), b, i, 0)
+        for j in range(1, len(meshes[i]["primitives"])):
+            child = {"name": f"mimetic_{b}_{j}", "mesh": first[i] + j}
+            node.setdefault("children", []).append(len(nodes))
+            nodes.append(child)
+            plan[child["name"]] = _Piece(rank.get(b, -1), b, i, j)
+    return h, plan
+
+
+def _gltf_to_loaded(scene, header: dict, plan: dict[str, _Piece], src: str) -> _Loaded:
+    """Concatenate the scene's triangle meshes in node order, each under its world transform."""
+    import trimesh
+
+    found = []
+    skipped = 0
+    for node_name in scene.graph.nodes_geometry:
+        transform, geometry_name = scene.graph[node_name]
+        geometry = scene.geometry[geometry_name]
+        piece = plan.get(node_name)
+        if piece is None or not isinstance(geometry, trimesh.Trimesh):
+            skipped += 1
+            continue
+        found.append((piece.rank, piece.node, piece.primitive, piece, np.asarray(transform), geometry))
+    if skipped:
+        log.warning(
+            "%s: skipped %d glTF node(s) that are not triangle meshes (points or lines)", src, skipped
+        )
+    found.sort(key=lambda item: item[:3])
+    if not found:
+        return _Loaded(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+
+    meshes, nodes = header.get("meshes", []), header.get("nodes", [])
+    materials = header.get("materials", [])
+    vertices, faces, colors, names = [], [], [], []
+    shared: dict[tuple[int, int], int] = {}  # (node, POSITION accessor) -> vertex offset
+    n = 0
+    any_color = False
+    for _, b, j, piece, transform, geometry in found:
+        primitive = meshes[piece.mesh]["primitives"][j]
+        f = np.asarray(geometry.faces, dtype=np.int64)
+        linear = transform[:3, :3]
+        if np.linalg.det(linear) < 0:  # mirrored: keep faces outward
+            f = f[:, [0, 2, 1]]
+        accessor = primitive.get("attributes", {}).get("POSITION", -1)
+        if (b, accessor) in shared:  # primitives sharing vertices
+            faces.append(f + shared[(b, accessor)])
+        else:
+            v = np.asarray(geometry.vertices, dtype=np.float64)
+            if not np.array_equal(transform, np.eye(4)):
+                v = v @ linear.T + transform[:3, 3]
+            shared[(b, accessor)] = n
+            faces.append(f + n)
+            vertices.append(v)
+            c = _trimesh_colors(geometry)
+            any_color |= c is not None
+            colors.append(c if c is not None else np.full((len(v), 3), DEFAULT_COLOR, np.float32))
+            n += len(v)
+        names.append(_piece_name(nodes[b], meshes[piece.mesh], primitive, j, b, materials))
+
+    all_faces = np.concatenate(faces)
+    parts: dict[str, np.ndarray] = {}
+    if len(found) > 1:
+        offsets = np.cumsum([0] + [len(f) for f in faces])
+        for name, lo, hi in zip(names, offsets, offsets[1:], strict=False):
+            unique = name
+            k = 1
+            while unique in parts:
+                k += 1
+                unique = f"{name}_{k}"
+            parts[unique] = np.arange(lo, hi)
+    units = next(
+        (
+            m["extras"]["units"]
+            for m in meshes
+            if isinstance(m.get("extras"), dict) and isinstance(m["extras"].get("units"), str)
+        ),
+        None,
+    )
+    return _Loaded(
+        np.concatenate(vertices), all_faces, parts, np.concatenate(colors) if any_color else None, units
+    )
+
+
+def _piece_name(node: dict, mesh: dict, primitive: dict, j: int, b: int, materials: list) -> str:
+    base = node.get("name") or mesh.get("name") or f"node_{b}"
+    if len(mesh.get("primitives", [])) == 1:
+        return str(base)
+    material = primitive.get("material")
+    label = (
+        materials[material].get("name") if isinstance(material, int) and material < len(materials) else None
+    )
+    return f"{base}_{label or j}"
+
+
+def _part_blocks(mesh: Mesh, src: str) -> list[tuple[str, slice, slice]]:
+    """(name, vertex slice, face slice) of each part, when parts are consecutive blocks.
+
+    glTF gives every node its own vertices, so a mesh can be written part by part without
+    reordering only if each part owns a run of faces and a run of vertices, in the same order,
+    together covering every face (vertices used by no face join the part before them).
+    """
+    m, n = mesh.n_faces, mesh.n_vertices
+    parts = sorted(
+        ((name, np.asarray(ids)) for name, ids in mesh.parts.items() if len(ids)), key=lambda p: p[1].min()
+    )
+    if not parts:
+        return [("mesh", slice(0, n), slice(0, m))]
+
+    def fail(reason: str) -> MeshError:
+        return MeshError(
+            f"{src}: glTF stores each part as a node with its own vertices, so parts must be consecutive "
+            f"blocks of faces and vertices (as Mesh.concatenate builds them); {reason}. Save as .obj to keep "
+            "these parts as groups, or drop them: Mesh(mesh.vertices, mesh.faces, colors=mesh.colors, "
+            "units=mesh.units)."
+        )
+
+    f0 = 0
+    v_lo = []
+    for name, ids in parts:
+        if not np.array_equal(ids, np.arange(f0, f0 + len(ids))):
+            raise fail(f"part {name!r} is not the run of faces {f0}..{f0 + len(ids) - 1}")
+        v_lo.append(0 if f0 == 0 else int(mesh.faces[ids].min()))
+        f0 += len(ids)
+    if f0 != m:
+        raise fail(f"{m - f0} faces are in no part")
+    v_bounds = [*v_lo, n]
+    blocks = []
+    f0 = 0
+    for k, (name, ids) in enumerate(parts):
+        lo, hi = v_bounds[k], v_bounds[k + 1]
+        used = mesh.faces[ids]
+        if hi <= lo or used.min() < lo or used.max() >= hi:
+            raise fail(f"part {name!r} uses vertices outside its block {lo}..{hi - 1}")
+        blocks.append((name, slice(lo, hi), slice(f0, f0 + len(ids))))
+        f0 += len(ids)
+    return blocks
+
+
+def _gltf_scene(mesh: Mesh, src: str):
+    import trimesh
+
+    scene = trimesh.Scene()
+    colors = None if mesh.colors is None else _colors_to_u8(mesh.colors)
+    for name, vs, fs in _part_blocks(mesh, src):
+        kwargs = {}
+        if colors is not None:
+            kwargs["vertex_colors"] = np.column_stack(
+                [colors[vs], np.full(vs.stop - vs.start, 255, np.uint8)]
+            )
+        tm = trimesh.Trimesh(
+            mesh.vertices[vs], mesh.faces[fs] - vs.start, process=False, validate=False, **kwargs
+        )
+        if mesh.units:
+            tm.metadata["units"] = mesh.units
+        scene.add_geometry(tm, node_name=name, geom_name=name)
+    return scene
+
+
+def _encode_glb(mesh: Mesh, src: str) -> bytes:
+    return _gltf_scene(mesh, src).export(file_type="glb")
+
+
+def _encode_gltf(mesh: Mesh, src: str) -> bytes:
+    files = _gltf_scene(mesh, src).export(file_type="gltf", embed_buffers=True)
+    (data,) = files.values()
+    return data
