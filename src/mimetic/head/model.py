@@ -95,8 +95,8 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
     eye_r = eye_l * np.array([-1.0, 1.0, 1.0])
     mouth_rim = geo.vertices[topo.mouth.index[0]]
     stomion = geo.mouth_anchor
-    incisal = np.array([0.0, stomion[1] - 0.05, stomion[2] - 0.55])
-    lower_incisal = incisal + np.array([0.0, 0.0, -0.2])
+    incisal = np.array([0.0, stomion[1] - 0.05, stomion[2] - 1.25])
+    lower_incisal = incisal + np.array([0.0, 0.0, -0.15])
     tragus_l = _tragus(geo.vertices[: topo.n_vertices], params)
     pieces = {
         "skin": skin,
@@ -104,7 +104,7 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
         "eye_R": parts.eyeball(eye_r, geo.eye_radius, s),
         "teeth_upper": parts.teeth(incisal, upper=True, s=s),
         "teeth_lower": parts.teeth(lower_incisal, upper=False, s=s),
-        "tongue": parts.tongue(incisal + np.array([0.0, -0.95, -2.7]), s),
+        "tongue": parts.tongue(incisal + np.array([0.0, -0.7, -2.9]), s),
         "mouth": parts.mouth_cavity(mouth_rim, s),
         "ear_L": parts.ear(tragus_l, 1.0, s),
         "ear_R": parts.ear(tragus_l * np.array([-1.0, 1.0, 1.0]), -1.0, s),

@@ -134,8 +134,8 @@ def tongue(centre: np.ndarray, s: float) -> Mesh:
     cols = max(16, 4 * round(6 * s))
     angles = np.linspace(0, np.pi, max(10, round(12 * s)) + 1)[1:-1]
     v, f = _lathe(angles, lambda th: np.ones_like(th), cols)
-    v = v * np.array([1.9, 0.75, 2.7])
-    v[:, 1] += 0.25 * (1 - (v[:, 0] / 1.9) ** 2) * (v[:, 1] > 1e-9)
+    v = v * np.array([1.75, 0.6, 2.6])
+    v[:, 1] += 0.2 * (1 - (v[:, 0] / 1.75) ** 2) * (v[:, 1] > 1e-9)
     return Mesh(v + centre, f, colors=np.tile(np.float32(TONGUE), (len(v), 1)))
 
 

@@ -111,7 +111,7 @@ def warp_chart(chart: np.ndarray, layout: Layout) -> np.ndarray:
 def eye_margin(t: np.ndarray) -> np.ndarray:
     """Left-eye lid margin (k, 2) relative to the eye centre; t = 0 at the lateral canthus."""
     c, s = np.cos(t), np.sin(t)
-    half = np.where(c >= 0, 1.32, 1.55)                 # lateral, medial half-width
+    half = np.where(c >= 0, 1.55, 1.55)                 # lateral, medial half-width
     up = 0.56 * (1.0 - 0.18 * c) * np.abs(s) ** 0.85     # upper lid peaks a little medially
     low = -0.40 * (1.0 + 0.15 * c) * np.abs(s) ** 1.1
     y = np.where(s >= 0, up, low) + 0.10 * c - 0.05      # lateral canthus higher (canthal tilt)
@@ -179,10 +179,10 @@ def _smin(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
 def base_field(p: np.ndarray, params: HeadParams, layout: Layout) -> np.ndarray:
     """Approximate signed distance (…,) of points (…, 3) to the base head (negative inside)."""
     jw, ch = params.jaw_width, layout.chin_shift
-    f = _superellipsoid(p, (0, 2.9, -0.9), (7.6, 9.0, 9.7), 2.0, 2.4)            # cranium
+    f = _superellipsoid(p, (0, 2.7, -0.9), (7.75, 8.9, 9.7), 2.0, 2.4)            # cranium
     f = _smin(f, _ellipsoid(p, (0, -0.8, 1.7), (6.9, 7.4, 7.15)), 2.0)            # upper face
     f = _smin(f, _ellipsoid(p, (0, -5.4, 3.5), (4.9, 3.6, 6.3)), 1.6)              # maxilla
-    f = _smin(f, _superellipsoid(p, (0, -7.3 - 0.7 * ch, -0.2), (5.6 * jw, 3.4 + 0.3 * ch, 7.5), 2.6, 3.0), 1.4)
+    f = _smin(f, _superellipsoid(p, (0, -7.3 - 0.7 * ch, 0.8), (5.6 * jw, 3.4 + 0.3 * ch, 6.6), 2.6, 3.0), 1.4)
     f = _smin(f, _ellipsoid(p, (0, -9.8 - ch, 5.6), (2.9, 2.2, 3.2)), 1.4)          # chin
     neck = _superellipsoid(p, (0, -14.0, -2.2), (4.8, 10.0, 4.7), 2.0, 6.0)
     f = _smin(f, neck, 1.6)
@@ -241,10 +241,11 @@ def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) 
     h = nose_height(X, Y, L)
     h += 0.62 * params.brow_ridge * _gauss(ax, Y, ex + 0.1, ey + 1.85, 1.9, 0.62)        # brow ridge
     h += 0.6 * params.brow_ridge * _gauss(X, Y, 0.0, ey + 1.55, 1.2, 0.8)              # glabella
-    h -= 1.5 * _gauss(ax, Y, ex, ey + 0.05, 1.45, 1.0)                                  # eye socket
+    h -= 1.35 * _gauss(ax, Y, ex - 0.25, ey + 0.05, 1.3, 1.0)                            # eye socket
     h -= 0.35 * _gauss(ax, Y, ex - 1.6, ey + 0.2, 0.6, 0.7)                              # medial canthus hollow
     h += 0.55 * params.cheekbones * _gauss(ax, Y, ex + 1.55, -2.4, 1.45, 1.0)           # cheekbones
     h += 0.5 * _gauss(ax, Y, ex + 0.4, -3.6, 1.7, 1.4)                                   # malar fat
+    h += 0.35 * _gauss(ax, Y, 4.6, -6.2, 1.6, 1.7)                                     # buccal fullness
     h -= 0.15 * _gauss(ax, Y, 6.2, 2.8, 1.0, 1.8)                                        # temples
     h -= 0.1 * _gauss(ax, Y, 5.4, -5.4, 1.2, 1.3)                                       # under cheekbone
     mx, my = L.mouth_centre

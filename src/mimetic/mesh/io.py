@@ -3,22 +3,24 @@
 Every rig element refers to vertices by index, so a mesh must come back from disk with exactly
 the vertices, in exactly the order, it was written with. What each format keeps:
 
-========  =============  ==========  ===========================  ==================
+========  =============  ==========  ===========================  ====================================
 format    vertex order   precision   parts                        colours / units
-========  =============  ==========  ===========================  ==================
+========  =============  ==========  ===========================  ====================================
 .obj      exact          float64     ``g`` groups (``o`` too)     ``v x y z r g b`` / ``# units: cm``
 .ply      exact          float64     not stored (merged)          uchar RGB / ``comment units cm``
 .glb      exact          float32     one node per part            COLOR_0 / mesh ``extras.units``
 .gltf     exact          float32     one node per part            COLOR_0 / mesh ``extras.units``
 .stl      first use      float32     not stored (merged)          none / none
-========  =============  ==========  ===========================  ==================
+========  =============  ==========  ===========================  ====================================
 
 OBJ is read and written by mimetic itself: trimesh 5.2 splits OBJ vertices by their ``vt``/``vn``
 indices (or, with ``maintain_order=True``, drops unused trailing vertices), and returns groups in
-reverse order, merged by name. PLY is read by trimesh and written by mimetic (trimesh writes
-float32). glTF is read and written by trimesh with processing off; node order comes from the
-file's own JSON, because trimesh's scene graph lists nodes in reverse. STL has no vertex
-indices at all: loading merges bit-identical corners in order of first use.
+reverse order, merged by name. OBJ polygons are fan-triangulated in place, so face order follows
+the file. PLY is read by trimesh and written by mimetic (trimesh writes float32); a PLY mixing
+triangles and quads comes back with the triangles first (trimesh's order, deterministic). glTF is
+read and written by trimesh with processing off; node order comes from the file's own JSON,
+because trimesh's scene graph lists nodes in reverse. STL has no vertex indices at all: loading
+merges equal corners in order of first use.
 """
 
 from __future__ import annotations
@@ -134,9 +136,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: 
         _check_loaded(vertices, m, src)
     units = units or _file_units(loaded.units, vertices, src)
     if units is None:
-        extent = largest_extent(vertices)
-        units = units_for_extent(extent)
-        if units is None and check:
+        units = units_for_extent(largest_extent(vertices))
+        if units is None and check:  # re-run to raise detect_units' own message
             try:
                 detect_units(vertices)
             except MeshError as error:
@@ -305,7 +306,10 @@ _OBJ_KEYWORDS = frozenset(
     "v vt vn vp f l p o g s usemtl mtllib cstype deg bmat step curv curv2 surf parm trim hole scrv sp "
     "end con mg bevel c_interp d_interp lod shadow_obj trace_obj maplib usemap".split()
 )
-_UNITS_COMMENT = re.compile(r"#\s*units\s*[:=]\s*(\S+)\s*$", re.IGNORECASE)
+_OBJ_V = re.compile(r"^[ \t]*v[ \t]+([^\n]*)", re.MULTILINE)
+_OBJ_F = re.compile(r"^[ \t]*f[ \t]+([^\n]*)", re.MULTILINE)
+_OBJ_OG = re.compile(r"^[ \t]*([og])(?:[ \t]+([^\n]*))?$", re.MULTILINE)
+_OBJ_UNITS = re.compile(r"^[ \t]*#[ \t]*units[ \t]*[:=][ \t]*(\S+)[ \t]*$", re.MULTILINE | re.IGNORECASE)
 _AFTER_SLASH = re.compile(r"/\S*")
 
 
@@ -314,62 +318,51 @@ def _read_obj(data: bytes, src: str, path: Path) -> _Loaded:
 
     A face's part is its current ``g`` group(s) (``g a b`` puts it in both), else its current ``o``
     object; a new ``o`` ends the current groups and a bare ``g`` ends them too. ``vt``, ``vn``,
-    materials and free-form geometry are ignored.
+    materials and free-form geometry are ignored. Lines are found with regular expressions and
+    numbers parsed with ``np.loadtxt``, so there is no Python loop over lines.
     """
     if b"\x00" in data[:8192]:
         raise MeshError(
             f"{src}: not a Wavefront OBJ file (it is binary; OBJ is text). Check the file's format."
         )
-    text = data.decode("utf-8", errors="replace").replace("\\\r\n", " ").replace("\\\n", " ")
-    v_rows: list[str] = []
-    f_rows: list[str] = []
-    f_nv: list[int] = []  # vertices defined before each face line (for negative indices)
-    f_key: list[int] = []  # part key of each face line
+    text = data.decode("utf-8", errors="replace").replace("\r\n", "\n").replace("\r", "\n")
+    text = text.replace("\\\n", " ")  # line continuation
+    v_rows = _OBJ_V.findall(text)
+
+    # Split the text at o/g lines (few); each segment's faces share one part key.
     keys: dict[tuple[str, ...], int] = {(): 0}
     obj: str | None = None
     groups: tuple[str, ...] = ()
-    key_id = 0
-    units: str | None = None
-    unknown: tuple[int, str] | None = None
-    for lineno, line in enumerate(text.splitlines(), 1):
-        s = line.strip()
-        if not s:
-            continue
-        if s[0] == "#":
-            if units is None and (match := _UNITS_COMMENT.match(s)):
-                units = match.group(1)
-            continue
-        head, *tail = s.split(None, 1)
-        rest = tail[0] if tail else ""
-        if head == "v":
-            v_rows.append(rest)
-        elif head == "f":
-            f_rows.append(rest)
-            f_nv.append(len(v_rows))
-            f_key.append(key_id)
-        elif head in ("o", "g"):
-            if head == "o":
-                obj, groups = rest.strip() or None, ()
-            else:
-                groups = tuple(rest.split())
-            key = groups or ((obj,) if obj else ())
-            key_id = keys.setdefault(key, len(keys))
-        elif head not in _OBJ_KEYWORDS and unknown is None:
-            unknown = (lineno, s)
+    bounds, seg_keys = [0], [0]
+    for match in _OBJ_OG.finditer(text):
+        head, rest = match.group(1), (match.group(2) or "").strip()
+        if head == "o":
+            obj, groups = rest or None, ()
+        else:
+            groups = tuple(rest.split())
+        bounds.append(match.start())
+        seg_keys.append(keys.setdefault(groups or ((obj,) if obj else ()), len(keys)))
+    bounds.append(len(text))
+    f_rows: list[str] = []
+    f_key: list[np.ndarray] = []
+    for lo, hi, key_id in zip(bounds, bounds[1:], seg_keys, strict=False):
+        rows = _OBJ_F.findall(text, lo, hi)
+        f_rows += rows
+        f_key.append(np.full(len(rows), key_id, dtype=np.int64))
 
     if not v_rows and not f_rows:
-        if unknown is not None:
-            raise MeshError(
-                f"{src}: not a Wavefront OBJ file: line {unknown[0]} ({unknown[1][:40]!r}) is not an OBJ "
-                "statement. Check that the file is a mesh and that its extension is right."
-            )
+        for lineno, line in enumerate(text.splitlines(), 1):
+            head = line.split(None, 1)[:1]
+            if head and not head[0].startswith("#") and head[0] not in _OBJ_KEYWORDS:
+                raise MeshError(
+                    f"{src}: not a Wavefront OBJ file: line {lineno} ({line.strip()[:40]!r}) is not an OBJ "
+                    "statement. Check that the file is a mesh and that its extension is right."
+                )
         raise MeshError(
             f"{src}: the OBJ file has no vertices and no faces (empty mesh). Re-export it with its geometry."
         )
-    if unknown is not None:
-        log.debug("%s: ignoring unknown OBJ statements, first at line %d: %r", src, *unknown)
     vertices, colors = _obj_vertices(v_rows, src, text)
-    faces, tri_key = _obj_faces(f_rows, f_nv, f_key, len(vertices), src, text)
+    faces, tri_key = _obj_faces(f_rows, np.concatenate(f_key), len(vertices), src, text)
 
     members: dict[str, list[np.ndarray]] = {}
     for key, kid in keys.items():
@@ -379,46 +372,55 @@ def _read_obj(data: bytes, src: str, path: Path) -> _Loaded:
                 members.setdefault(name, []).append(ids)
     parts = {name: np.sort(np.concatenate(ids)) for name, ids in members.items()}
     parts = dict(sorted(parts.items(), key=lambda item: int(item[1][0])))
+    units = match.group(1) if (match := _OBJ_UNITS.search(text)) else None
     return _Loaded(vertices, faces, parts, colors, units)
 
 
-def _nth_line(text: str, keyword: str, k: int) -> int:
-    """Line number (1-based) of the k-th (0-based) line starting with ``keyword``; for error messages."""
-    count = 0
-    for lineno, line in enumerate(text.splitlines(), 1):
-        if line.split(None, 1)[:1] == [keyword]:
-            if count == k:
-                return lineno
-            count += 1
-    return -1
+def _line_of(text: str, pattern: re.Pattern, k: int) -> int:
+    """Line number (1-based) of the k-th (0-based) match of ``pattern``; for error messages."""
+    match = next(itertools.islice(pattern.finditer(text), k, None))
+    return text.count("\n", 0, match.start()) + 1
+
+
+def _loadtxt(rows: list[str], dtype: type) -> np.ndarray | None:
+    """Rows of whitespace-separated numbers as a 2-D array, or None if ragged or unreadable."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return np.loadtxt(rows, dtype=dtype, ndmin=2, comments="#")
+    except ValueError:
+        return None
 
 
 def _obj_vertices(rows: list[str], src: str, text: str) -> tuple[np.ndarray, np.ndarray | None]:
-    tokens = [r.split() for r in rows]
-    lengths = np.fromiter(map(len, tokens), dtype=np.int64, count=len(tokens))
-    if len(tokens) == 0:
+    if not rows:
         return np.zeros((0, 3)), None
-    if (short := np.flatnonzero(lengths < 3)).size:
-        k = int(short[0])
-        raise MeshError(f"{src}: line {_nth_line(text, 'v', k)}: a vertex needs x y z; got 'v {rows[k]}'.")
-    try:
-        xyz = np.array(tokens if (lengths == 3).all() else [t[:3] for t in tokens], dtype=np.float64)
-    except ValueError:
-        k = next(i for i, t in enumerate(tokens) if not _floats_ok(t[:3]))
-        raise MeshError(
-            f"{src}: line {_nth_line(text, 'v', k)}: cannot read 'v {rows[k]}' as numbers."
-        ) from None
-    colors = None
-    if lengths.min() >= 6:
+    table = _loadtxt(rows, np.float64)  # fast path: every row has the same count
+    if table is None or table.shape[0] != len(rows):
+        tokens = [r.split("#", 1)[0].split() for r in rows]
+        width = min(map(len, tokens))
+        if width < 3:
+            k = next(i for i, t in enumerate(tokens) if len(t) < 3)
+            raise MeshError(
+                f"{src}: line {_line_of(text, _OBJ_V, k)}: a vertex needs x y z; got 'v {rows[k]}'."
+            )
         try:
-            rgb = np.array([t[3:6] for t in tokens], dtype=np.float64)
+            table = np.array([t[: min(width, 6)] for t in tokens], dtype=np.float64)
         except ValueError:
-            rgb = None
-        if rgb is not None and np.isfinite(rgb).all():
+            k = next(i for i, t in enumerate(tokens) if not _floats_ok(t[:width]))
+            raise MeshError(
+                f"{src}: line {_line_of(text, _OBJ_V, k)}: cannot read 'v {rows[k]}' as numbers."
+            ) from None
+    if table.shape[1] < 3:
+        raise MeshError(f"{src}: line {_line_of(text, _OBJ_V, 0)}: a vertex needs x y z; got 'v {rows[0]}'.")
+    colors = None
+    if table.shape[1] == 6:  # x y z r g b (7 or more columns are ambiguous: ignored)
+        rgb = table[:, 3:6]
+        if np.isfinite(rgb).all():
             if rgb.max() > 1.0:  # 0-255 colours
                 rgb = rgb / 255.0
             colors = np.clip(rgb, 0.0, 1.0).astype(np.float32)
-    return xyz, colors
+    return np.ascontiguousarray(table[:, :3]), colors
 
 
 def _floats_ok(tokens: list[str]) -> bool:
@@ -430,33 +432,47 @@ def _floats_ok(tokens: list[str]) -> bool:
 
 
 def _obj_faces(
-    rows: list[str], nv_before: list[int], key: list[int], n: int, src: str, text: str
+    rows: list[str], key: np.ndarray, n: int, src: str, text: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """Fan-triangulated faces (t, 3) int64 (0-based) and the part key (t,) of each triangle."""
     if not rows:
         return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
-    tokens = [r.split() for r in _AFTER_SLASH.sub("", "\n".join(rows)).split("\n")]  # keep v of v/vt/vn
-    counts = np.fromiter(map(len, tokens), dtype=np.int64, count=len(tokens))
-    if (short := np.flatnonzero(counts < 3)).size:
-        k = int(short[0])
-        raise MeshError(
-            f"{src}: line {_nth_line(text, 'f', k)}: a face needs at least 3 vertices; got 'f {rows[k]}'."
-        )
-    try:
-        flat = np.array(list(itertools.chain.from_iterable(tokens)), dtype=np.int64)
-    except ValueError:
-        k = next(i for i, t in enumerate(tokens) if not all(x.lstrip("-").isdigit() for x in t))
-        raise MeshError(
-            f"{src}: line {_nth_line(text, 'f', k)}: cannot read 'f {rows[k]}' as vertex indices."
-        ) from None
-    before = np.repeat(np.asarray(nv_before, dtype=np.int64), counts)  # (sum counts,)
-    index = np.where(flat > 0, flat - 1, before + flat)  # 1-based or relative (-1 = last)
+    rows_v = _AFTER_SLASH.sub("", "\n".join(rows)).split("\n")  # keep v of v/vt/vn
+    table = _loadtxt(rows_v, np.int64)
+    if table is not None and table.shape[0] == len(rows) and table.shape[1] >= 3:
+        counts = np.full(len(rows), table.shape[1], dtype=np.int64)
+        flat = table.ravel()
+    else:  # mixed polygon sizes, or an error to report
+        tokens = [r.split() for r in rows_v]
+        counts = np.fromiter(map(len, tokens), dtype=np.int64, count=len(tokens))
+        if (short := np.flatnonzero(counts < 3)).size:
+            k = int(short[0])
+            raise MeshError(
+                f"{src}: line {_line_of(text, _OBJ_F, k)}: a face needs at least 3 vertices; "
+                f"got 'f {rows[k]}'."
+            )
+        try:
+            flat = np.array(list(itertools.chain.from_iterable(tokens)), dtype=np.int64)
+        except ValueError:
+            k = next(i for i, t in enumerate(tokens) if not all(x.lstrip("-").isdigit() for x in t))
+            raise MeshError(
+                f"{src}: line {_line_of(text, _OBJ_F, k)}: cannot read 'f {rows[k]}' as vertex indices."
+            ) from None
+    if (flat < 0).any():  # relative indices: -1 is the latest vertex defined before the face line
+        v_pos = np.array([m.start() for m in _OBJ_V.finditer(text)], dtype=np.int64)
+        f_pos = np.array([m.start() for m in _OBJ_F.finditer(text)], dtype=np.int64)
+        before = np.repeat(np.searchsorted(v_pos, f_pos), counts)  # (sum counts,)
+        index = np.where(flat > 0, flat - 1, before + flat)
+    else:
+        index = flat - 1
     if (bad := np.flatnonzero((flat == 0) | (index < 0) | (index >= n))).size:
         k = int(np.searchsorted(np.cumsum(counts), bad[0], side="right"))
         raise MeshError(
-            f"{src}: line {_nth_line(text, 'f', k)}: face 'f {rows[k]}' refers to a vertex that does not "
+            f"{src}: line {_line_of(text, _OBJ_F, k)}: face 'f {rows[k]}' refers to a vertex that does not "
             f"exist (the file has {n}; OBJ indices start at 1; negative ones count back from the latest)."
         )
+    if (counts == 3).all():
+        return index.reshape(-1, 3), key
     # Fan triangulation: polygon p with c corners starting at s gives (s, s+i, s+i+1), i = 1..c-2.
     start = np.cumsum(counts) - counts  # (P,)
     n_tri = counts - 2  # (P,)
@@ -464,9 +480,8 @@ def _obj_faces(
     i = np.arange(len(poly)) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri) + 1
     s = start[poly]
     faces = np.column_stack([index[s], index[s + i], index[s + i + 1]])  # (T, 3)
-    if len(faces) > len(counts):
-        log.debug("%s: fan-triangulated %d polygons", src, int((counts > 3).sum()))
-    return faces, np.asarray(key, dtype=np.int64)[poly]
+    log.debug("%s: fan-triangulated %d polygons", src, int((counts > 3).sum()))
+    return faces, key[poly]
 
 
 def _encode_obj(mesh: Mesh, src: str) -> bytes:

@@ -37,13 +37,15 @@ def check_units(units: str) -> str:
 def largest_extent(vertices: np.ndarray) -> float:
     """Largest side of the axis-aligned bounding box of the finite rows of ``vertices`` (n, 3).
 
-    Rows with a NaN or infinite coordinate are ignored. Returns NaN when no row is finite.
+    Rows with a NaN or infinite coordinate are ignored. Returns NaN when no row is finite, and
+    inf when the extent overflows float64.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     finite = vertices[np.isfinite(vertices).all(axis=1)]  # (k, 3)
     if len(finite) == 0:
         return math.nan
-    return float(np.max(finite.max(axis=0) - finite.min(axis=0)))
+    with np.errstate(over="ignore"):  # e.g. -1e308 .. 1e308 gives inf, which is fine
+        return float(np.max(finite.max(axis=0) - finite.min(axis=0)))
 
 
 def units_for_extent(extent: float) -> str | None:

@@ -9,8 +9,9 @@ milliseconds.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from types import MappingProxyType
 from typing import Any
 
@@ -19,7 +20,7 @@ import numpy as np
 from mimetic.errors import MeshError
 from mimetic.mesh.geometry import _boundary_counts, _edge_components, edges_with_counts
 from mimetic.mesh.model import Mesh
-from mimetic.mesh.units import PLAUSIBLE_EXTENT_M, largest_extent, units_for_extent
+from mimetic.mesh.units import PLAUSIBLE_EXTENT_M, units_for_extent
 
 log = logging.getLogger(__name__)
 
@@ -112,11 +113,19 @@ class MeshReport:
             raise MeshError(prefix + "; ".join(self.errors))
 
     def as_dict(self) -> dict[str, Any]:
-        """All fields as JSON-safe Python values (lists for tuples, None for missing numbers)."""
-        out = asdict(self) | {"part_faces": dict(self.part_faces), "ok": self.ok}
-        for key in ("bbox_min", "bbox_max", "errors", "warnings"):
+        """All fields as JSON-safe Python values (lists for tuples; None for missing or infinite numbers)."""
+
+        def safe(x: float) -> float | None:
+            return x if math.isfinite(x) else None
+
+        out: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
+        out["part_faces"] = dict(self.part_faces)
+        for key in ("bbox_min", "bbox_max"):
             if out[key] is not None:
-                out[key] = list(out[key])
+                out[key] = [safe(x) for x in out[key]]
+        out["extent"] = None if self.extent is None else safe(self.extent)
+        out["errors"], out["warnings"] = list(self.errors), list(self.warnings)
+        out["ok"] = self.ok
         return out
 
     def lines(self) -> list[str]:
@@ -156,8 +165,12 @@ def validate_mesh(mesh: Mesh) -> MeshReport:
     v, f = mesh.vertices, mesh.faces  # (n, 3) float64, (m, 3) int64
     n, m = len(v), len(f)
     finite = np.isfinite(v).all(axis=1)  # (n,)
-    in_range = ((f >= 0) & (f < n)).all(axis=1)  # (m,)
-    fv = f[in_range]  # (k, 3) faces safe to index with
+    all_finite = bool(finite.all())
+    if m == 0 or (f.min() >= 0 and f.max() < n):  # the usual case: skip the (m, 3) mask
+        in_range, fv = np.ones(m, dtype=bool), f
+    else:
+        in_range = ((f >= 0) & (f < n)).all(axis=1)  # (m,)
+        fv = f[in_range]  # (k, 3) faces safe to index with
 
     # 1. Degenerate: a repeated index, or twice the area tiny against the longest edge squared.
     repeated = (fv[:, 0] == fv[:, 1]) | (fv[:, 1] == fv[:, 2]) | (fv[:, 0] == fv[:, 2])
@@ -192,9 +205,11 @@ def validate_mesh(mesh: Mesh) -> MeshReport:
 
     # 4. Size and units.
     if finite.any():
-        lo, hi = v[finite].min(axis=0), v[finite].max(axis=0)
+        vf = v if all_finite else v[finite]
+        lo, hi = vf.min(axis=0), vf.max(axis=0)
         bbox_min, bbox_max = tuple(map(float, lo)), tuple(map(float, hi))
-        extent: float | None = largest_extent(v)
+        with np.errstate(over="ignore"):
+            extent: float | None = float(np.max(hi - lo))  # = units.largest_extent(v)
     else:
         bbox_min = bbox_max = extent = None
     detected = units_for_extent(extent) if extent is not None else None

@@ -1,0 +1,306 @@
+"""The rig recipe: ``build_rig(head)`` places the anatomy on a generated head.
+
+Every element is defined by surface locations of the reference topology (landmark names,
+region names and skin vertices nearest to canonical chart points, which are the same vertex
+indices for every parameter set of a resolution), so the recipe rebuilds on any generated
+or fitted copy of the reference. Widths and dropoffs are fractions of the head height
+(``Rig.scale``). The muscle set follows the automated rigging thesis (26 controls, Table 4.1)
+plus zygomatic minor, buccinator, levator palpebrae, platysma and the orbicularis oris and
+oculi as sphincters.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from mimetic.head.model import Head
+from mimetic.head.params import HeadParams
+from mimetic.head.shape import skin_geometry
+from mimetic.head.topology import build_topology
+from mimetic.mesh.model import SurfacePoint
+from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
+
+BONES = ("head", "jaw", "eyelid_upper_L", "eyelid_upper_R", "eyelid_lower_L", "eyelid_lower_R", "eye_L", "eye_R")
+
+# (name, kind, origin, insertion, width_rel, falloff_start_rel, falloff_end_rel, angle_deg, region)
+# origin / insertion: a landmark name or a canonical chart point (X, Y) on the left side;
+# right-side muscles mirror the left. "C" muscles sit on the midline.
+_MUSCLES_L = [
+    ("frontalis_inner", "linear", (1.3, 7.6), "brow_inner_mid", 0.07, 0.4, 1.25, 40, "forehead"),
+    ("frontalis_outer", "linear", (4.2, 7.3), "brow_outer_mid", 0.07, 0.4, 1.25, 40, "forehead"),
+    ("corrugator", "linear", (0.7, 1.0), "brow_mid", 0.05, 0.3, 1.3, 35, "brow"),
+    ("orbicularis_oculi_inner", "linear", (1.3, 0.3), (2.4, -2.3), 0.05, 0.3, 1.3, 40, "cheek"),
+    ("orbicularis_oculi_outer", "linear", (5.6, 0.4), (4.2, -2.1), 0.06, 0.3, 1.3, 40, "cheek"),
+    ("levator_labii_nasal", "linear", (1.0, -0.3), "alar_base", 0.045, 0.35, 1.3, 30, "nasolabial"),
+    ("levator_labii_mid", "linear", (2.6, -1.6), "upper_lip_outer", 0.05, 0.4, 1.3, 30, "upper_lip"),
+    ("zygomatic_minor", "linear", (4.0, -2.1), "upper_lip_outer", 0.045, 0.4, 1.3, 30, "upper_lip"),
+    ("zygomatic_major", "linear", (6.0, -2.4), "mouth_corner", 0.06, 0.45, 1.3, 35, "cheek"),
+    ("risorius", "linear", (6.4, -7.6), "mouth_corner", 0.05, 0.45, 1.3, 30, "cheek"),
+    ("buccinator", "linear", (4.6, -7.3), "mouth_corner", 0.05, 0.4, 1.3, 30, "cheek"),
+    ("triangularis", "linear", (3.7, -11.2), "mouth_corner", 0.05, 0.45, 1.3, 30, "jaw"),
+    ("orbicularis_oris_incisivis", "linear", (0.8, -6.7), "mouth_corner", 0.04, 0.4, 1.3, 30, "upper_lip"),
+    ("depressor_labii", "linear", (1.6, -10.8), "lower_lip_mid", 0.045, 0.4, 1.3, 30, "lower_lip"),
+    ("levator_palpebrae", "linear", "brow_mid", "eye_upper_lid", 0.04, 0.3, 1.2, 45, "eyelid_upper"),
+    ("platysma", "sheet", (5.0, -17.0), "lower_lip_outer", 0.1, 0.3, 1.2, 30, "jaw"),
+]
+_MUSCLES_C = [
+    ("procerus", "linear", "nose_bridge_upper", "glabella", 0.04, 0.3, 1.3, 35, "forehead", False),
+    ("mentalis", "linear", "pogonion", (0.0, -9.0), 0.05, 0.2, 1.3, 40, "chin", True),
+]
+# sphincters: (name, side, centre, semi-major end, semi-minor in head heights, region)
+_SPHINCTERS = [
+    ("orbicularis_oris", "C", "upper_lip_inner", "mouth_corner_L", 0.05, "upper_lip"),
+    ("orbicularis_oculi_L", "L", "pupil_L", (5.9, 0.2), 0.085, "eyelid_upper_L"),
+    ("orbicularis_oculi_R", "R", "pupil_R", (-5.9, 0.2), 0.085, "eyelid_upper_R"),
+]
+# wires of the thesis (Table 4.1): name -> (points, driving muscles (same side), dropoff_rel, regions)
+_WIRES_L = {
+    "forehead": ([(0.6, 4.8), (2.2, 5.0), (3.8, 4.7), (5.2, 4.0)],
+                 ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"], 0.09, ["forehead", "brow"]),
+    "eyebrow": (["brow_inner", "brow_inner_mid", "brow_mid", "brow_outer_mid", "brow_outer"],
+                ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"], 0.06, ["brow", "forehead"]),
+    "nose": ([(0.9, -0.2), (1.3, -2.0), "alare"], ["orbicularis_oculi_inner", "levator_labii_nasal"], 0.05,
+             ["nose", "cheek"]),
+    "cheek": ([(1.9, -1.6), (3.2, -2.2), (4.6, -2.0), (5.6, -1.0)], ["orbicularis_oculi_outer"], 0.06,
+              ["cheek", "eyelid_lower"]),
+    "nasolabial": (["alar_base", (2.5, -5.6), (3.3, -7.4)], ["levator_labii_nasal", "levator_labii_mid", "zygomatic_minor"],
+                   0.05, ["nasolabial", "cheek"]),
+    "mouth_upper_corner": (["upper_lip_peak", "upper_lip_outer", "mouth_corner"],
+                           ["levator_labii_nasal", "levator_labii_mid", "zygomatic_minor", "zygomatic_major", "risorius",
+                            "buccinator", "triangularis", "orbicularis_oris_incisivis"], 0.045, ["upper_lip"]),
+    "mouth_lower_corner": (["lower_lip_mid", "lower_lip_outer", "mouth_corner"],
+                           ["zygomatic_major", "risorius", "buccinator", "triangularis", "orbicularis_oris_incisivis",
+                            "depressor_labii", "platysma"], 0.045, ["lower_lip", "chin"]),
+}
+_WIRES_C = {
+    "mouth_upper_center": (["upper_lip_peak_R", "upper_lip_top", "upper_lip_peak_L"],
+                           ["levator_labii_nasal", "levator_labii_mid", "zygomatic_major", "orbicularis_oris_incisivis"],
+                           0.045, ["upper_lip"]),
+    "mouth_lower_center": (["lower_lip_mid_R", "lower_lip_bottom", "lower_lip_mid_L"],
+                           ["zygomatic_major", "risorius", "triangularis", "depressor_labii", "orbicularis_oris_incisivis"],
+                           0.045, ["lower_lip", "chin"]),
+}
+
+
+@lru_cache(maxsize=8)
+def canonical_chart(resolution: int) -> np.ndarray:
+    """Chart positions (n_skin, 2) of the default head's skin vertices at a resolution."""
+    return skin_geometry(build_topology(resolution), HeadParams()).chart
+
+
+class _Places:
+    """Resolves recipe locations (landmark names, chart points) to vertices of one head."""
+
+    def __init__(self, head: Head) -> None:
+        self.head = head
+        self.faces = head.mesh.faces
+        self.chart = canonical_chart(head.resolution)
+        self.front = np.nonzero(build_topology(head.resolution).directions[:, 2] > 0.2)[0]
+        first_face = np.full(head.mesh.n_vertices, -1)
+        order = np.argsort(self.faces.ravel(), kind="stable")
+        flat = self.faces.ravel()[order]
+        starts = np.searchsorted(flat, np.arange(head.mesh.n_vertices))
+        valid = starts < len(flat)
+        first_face[valid] = order[starts[valid]] // 3
+        self.first_face = first_face
+
+    def vertex(self, where, side: str) -> int:
+        if isinstance(where, str):
+            name = where if where in self.head.landmarks else f"{where}_{side}"
+            return int(self.head.landmarks[name])
+        x, y = where
+        target = np.array([x if side != "R" else -x, y])
+        ids = self.front
+        return int(ids[np.argmin(np.linalg.norm(self.chart[ids] - target, axis=1))])
+
+    def point(self, where, side: str) -> SurfacePoint:
+        return self.vertex_point(self.vertex(where, side))
+
+    def vertex_point(self, vertex: int) -> SurfacePoint:
+        face = int(self.first_face[vertex])
+        corner = int(np.nonzero(self.faces[face] == vertex)[0][0])
+        bary = [0.0, 0.0, 0.0]
+        bary[corner] = 1.0
+        return SurfacePoint(face, (bary[0], bary[1], bary[2]))
+
+
+def _region(head: Head, names: list[str], side: str) -> np.ndarray:
+    ids = []
+    for n in names:
+        key = n if n in head.regions else f"{n}_{side}"
+        if key in head.regions:
+            ids.append(head.regions[key])
+    return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
+
+
+def _muscles(head: Head, places: _Places) -> list[Muscle]:
+    muscles = []
+    for side in ("L", "R"):
+        for name, kind, origin, insertion, width, fs, fe, angle, region in _MUSCLES_L:
+            reg = region if region in head.regions else f"{region}_{side}"
+            muscles.append(Muscle(
+                name=f"{name}_{side}", kind=kind, side=side,
+                origin=places.point(origin, side), insertion=places.point(insertion, side),
+                width_rel=width, falloff_start_rel=fs, falloff_end_rel=fe, angle_rad=float(np.radians(angle)),
+                region=reg if reg in head.regions else None,
+            ))
+    for name, kind, origin, insertion, width, fs, fe, angle, region, reversed_ in _MUSCLES_C:
+        muscles.append(Muscle(
+            name=name, kind=kind, side="C", origin=places.point(origin, "C"), insertion=places.point(insertion, "C"),
+            width_rel=width, falloff_start_rel=fs, falloff_end_rel=fe, angle_rad=float(np.radians(angle)),
+            reversed=reversed_, region=region,
+        ))
+    for name, side, centre, end, minor, region in _SPHINCTERS:
+        muscles.append(Muscle(
+            name=name, kind="sphincter", side=side, origin=places.point(centre, side),
+            insertion=places.point(end, side), width_rel=minor, falloff_start_rel=0.6, falloff_end_rel=1.5,
+            angle_rad=float(np.pi), origin_inset_rel=0.0, region=region,
+        ))
+    return muscles
+
+
+def _wires(head: Head, places: _Places, muscles: dict[str, Muscle]) -> list[Wire]:
+    v = head.mesh.vertices
+    wires = []
+    specs = [(f"{n}_{s}", s, spec) for s in ("L", "R") for n, spec in _WIRES_L.items()]
+    specs += [(n, "C", spec) for n, spec in _WIRES_C.items()]
+    for name, side, (points, drivers, dropoff, regions) in specs:
+        pts = [places.point(p, side) for p in points]
+        pos = np.array([p.position(v, head.mesh.faces) for p in pts])
+        sides = ("L", "R") if side == "C" else (side,)
+        weights = {}
+        for d in drivers:
+            for s in sides:
+                m = muscles.get(d) or muscles.get(f"{d}_{s}")
+                if m is None or m.name in weights:
+                    continue
+                ins = m.insertion.position(v, head.mesh.faces)
+                length = np.linalg.norm(ins - m.origin.position(v, head.mesh.faces))
+                dist = np.linalg.norm(pos - ins, axis=1)
+                weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.5 * length)) ** 2)), 6)
+        wires.append(Wire(
+            name=name, side=side, points=tuple(pts), dropoff_rel=dropoff,
+            vertices=_region(head, regions, side) if side != "C" else np.union1d(
+                _region(head, regions, "L"), _region(head, regions, "R")),
+            muscle_weights=weights, rest_weight=np.ones(len(pts)),
+        ))
+    return wires
+
+
+def _bones(head: Head) -> tuple[list[Bone], np.ndarray]:
+    lm = head.landmark_positions
+    tragion = lm(["tragion_L"])[0]
+    pogonion = lm(["pogonion"])[0]
+    pivot = np.array([0.0, tragion[1] - 0.8, tragion[2] + 1.0])     # in line with the lower ear
+    neck_base = np.array([0.0, head.vertices[: head.n_skin, 1].min() + 2.0, tragion[2] - 1.0])
+    bones = [
+        Bone("head", None, neck_base, np.array([0.0, tragion[1], tragion[2] - 1.0])),
+        Bone("jaw", "head", pivot, pogonion - np.array([0.0, 0.0, 1.0])),
+    ]
+    r = head.eye_radius
+    for i, side in enumerate("LR"):
+        c = head.eye_centres[i]
+        bones.append(Bone(f"eyelid_upper_{side}", "head", c, c + np.array([0.0, r, 0.0])))
+        bones.append(Bone(f"eyelid_lower_{side}", "head", c, c + np.array([0.0, -r, 0.0])))
+    for i, side in enumerate("LR"):
+        c = head.eye_centres[i]
+        bones.append(Bone(f"eye_{side}", "head", c, c + np.array([0.0, 0.0, r])))
+    order = {b.name: b for b in bones}
+    return [order[n] for n in BONES], pivot
+
+
+def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
+def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
+    """Smooth weights (n, bones) from regions and anatomy: head, jaw taper, lids, eyeballs."""
+    n = head.mesh.n_vertices
+    v = head.mesh.vertices
+    topo = build_topology(head.resolution)
+    W = np.zeros((n, len(BONES)))
+    stomion = head.landmark_positions(["upper_lip_inner"])[0]
+    # jaw: below the plane through the lip contact line and the jaw pivot, tapered over ~1.5 cm
+    a = np.array([0.0, stomion[1] - jaw_pivot[1], stomion[2] - jaw_pivot[2]])
+    normal = np.array([0.0, a[2], -a[1]]) / np.linalg.norm(a)          # points up-forward
+    if normal[1] < 0:
+        normal = -normal
+    height = (v - stomion) @ normal
+    jaw = _smoothstep(0.3, -1.3, height)
+    jaw *= _smoothstep(-17.0, -12.5, v[:, 1])                            # the neck stays with the head
+    jaw[head.regions["lower_lip"]] = 1.0
+    jaw[head.regions["upper_lip"]] = 0.0
+    parts = head.mesh.parts
+    for part, value in (("teeth_lower", 1.0), ("tongue", 1.0), ("teeth_upper", 0.0), ("ear_L", 0.0), ("ear_R", 0.0)):
+        jaw[np.unique(head.mesh.faces[parts[part]])] = value
+    W[:, BONES.index("jaw")] = jaw
+    # eyelids: the margin follows the lid bone fully, fading out by u = 0.45
+    for side in "LR":
+        rings = topo.eye_L if side == "L" else topo.eye_R
+        for k, u in enumerate(rings.u):
+            ids = rings.index[k]
+            w = 1.0 - _smoothstep(0.0, 0.45, np.array(max(u, 0.0)))
+            t = topo.ring_uv[ids, 1]
+            up = np.sin(t) > 1e-9
+            down = np.sin(t) < -1e-9
+            W[ids[up], BONES.index(f"eyelid_upper_{side}")] = w * np.sin(t[up]) ** 0.5
+            W[ids[down], BONES.index(f"eyelid_lower_{side}")] = w * (-np.sin(t[down])) ** 0.5
+        eye = np.unique(head.mesh.faces[parts[f"eye_{side}"]])
+        W[eye] = 0.0
+        W[eye, BONES.index(f"eye_{side}")] = 1.0
+    W[:, 0] = np.clip(1.0 - W[:, 1:].sum(axis=1), 0.0, None)
+    W /= W.sum(axis=1, keepdims=True)
+    W[W < 1e-6] = 0.0
+    W /= W.sum(axis=1, keepdims=True)
+    return sp.csr_matrix(W)
+
+
+def _channels(muscles: list[Muscle]) -> list[Channel]:
+    channels = [Channel(m.name, 0.0, 1.0, group="muscles") for m in muscles]
+    channels += [
+        Channel("jaw_open", -0.05, 0.45, unit="rad", group="jaw"),
+        Channel("jaw_slide", -0.03, 0.03, unit="rel", group="jaw"),
+        Channel("jaw_protrude", -0.02, 0.04, unit="rel", group="jaw"),
+    ]
+    for side in "LR":
+        channels += [
+            Channel(f"eyelid_upper_{side}", -0.25, 0.8, unit="rad", group="eyelids"),
+            Channel(f"eyelid_lower_{side}", -0.2, 0.3, unit="rad", group="eyelids"),
+        ]
+    channels += [
+        Channel("gaze_yaw", -0.6, 0.6, unit="rad", group="eyes"),
+        Channel("gaze_pitch", -0.5, 0.5, unit="rad", group="eyes"),
+        Channel("gaze_convergence", 0.0, 0.4, unit="rad", group="eyes"),
+        Channel("head_yaw", -0.9, 0.9, unit="rad", group="head"),
+        Channel("head_pitch", -0.6, 0.6, unit="rad", group="head"),
+        Channel("head_roll", -0.5, 0.5, unit="rad", group="head"),
+    ]
+    return channels
+
+
+def build_rig(head: Head) -> Rig:
+    """The procedural rig of a generated head: muscles, wires, bones, skin weights, channels."""
+    places = _Places(head)
+    muscles = _muscles(head, places)
+    scale = float(head.vertices[: head.n_skin, 1].max() - head.landmark_positions(["menton"])[0][1])
+    wires = _wires(head, places, {m.name: m for m in muscles})
+    bones, pivot = _bones(head)
+    landmarks = {name: places.vertex_point(v) for name, v in head.landmarks.items()}
+    return Rig(
+        mesh=head.mesh,
+        units="cm",
+        scale=scale,
+        landmarks=landmarks,
+        regions=dict(head.regions),
+        muscles=tuple(muscles),
+        wires=tuple(wires),
+        bones=tuple(bones),
+        skin_weights=_skin_weights(head, pivot),
+        channels=tuple(_channels(muscles)),
+        metadata={"generator": "mimetic.head", "resolution": head.resolution, "params": head.params.as_dict()},
+    )
+

@@ -1,0 +1,159 @@
+"""Tests for the topology helpers in mimetic.mesh.geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from mimetic.mesh.geometry import (
+    boundary_counts,
+    boundary_edges,
+    boundary_loops,
+    boundary_paths,
+    connected_components,
+    edges_unique,
+    edges_with_counts,
+    vertex_adjacency,
+)
+
+FIN = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])  # three triangles on edge (0, 1)
+BOWTIE = np.array([[0, 1, 2], [0, 3, 4]])  # two triangles touching at vertex 0
+
+
+def two_tetrahedra(tetrahedron):
+    return np.concatenate([tetrahedron.faces, tetrahedron.faces + 4])
+
+
+def test_edges_unique_tetrahedron_has_six_sorted_edges(tetrahedron):
+    faces = tetrahedron.faces
+    edges = edges_unique(faces)
+    assert edges.shape == (6, 2)
+    assert edges.dtype == np.int64
+    np.testing.assert_array_equal(edges, [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+
+
+def test_edges_with_counts_unit_square_diagonal_is_shared(unit_square):
+    edges, counts = edges_with_counts(unit_square.faces)
+    assert edges.shape == (5, 2)
+    assert counts.shape == (5,)
+    assert counts.dtype == np.int64
+    np.testing.assert_array_equal(edges, [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]])
+    np.testing.assert_array_equal(counts, [1, 2, 1, 1, 1])
+
+
+def test_edges_with_counts_fin_edge_counts_three():
+    edges, counts = edges_with_counts(FIN)
+    assert counts[(edges == [0, 1]).all(axis=1)].tolist() == [3]
+
+
+def test_edges_with_counts_degenerate_face_drops_self_edge():
+    edges, counts = edges_with_counts(np.array([[4, 4, 7]]))
+    np.testing.assert_array_equal(edges, [[4, 7]])
+    np.testing.assert_array_equal(counts, [2])
+
+
+def test_edges_with_counts_empty_faces_give_empty_arrays():
+    edges, counts = edges_with_counts(np.zeros((0, 3), np.int64))
+    assert edges.shape == (0, 2)
+    assert counts.shape == (0,)
+
+
+def test_edges_unique_float_faces_raise_type_error():
+    with pytest.raises(TypeError, match="integer"):
+        edges_unique(np.zeros((2, 3)))
+
+
+def test_vertex_adjacency_square_is_symmetric_with_expected_degrees(unit_square):
+    adjacency = vertex_adjacency(unit_square.faces, 5)
+    assert adjacency.shape == (5, 5)
+    assert adjacency.dtype == np.float64
+    assert (adjacency != adjacency.T).nnz == 0
+    assert adjacency.diagonal().sum() == 0
+    np.testing.assert_array_equal(np.asarray(adjacency.sum(axis=1)).ravel(), [3, 2, 3, 2, 0])
+    np.testing.assert_array_equal(np.sort(adjacency[0].indices), [1, 2, 3])
+
+
+def test_vertex_adjacency_n_too_small_raises(unit_square):
+    with pytest.raises(ValueError, match="n=3"):
+        vertex_adjacency(unit_square.faces, 3)
+
+
+def test_connected_components_two_tetrahedra_give_two(tetrahedron):
+    faces = two_tetrahedra(tetrahedron)
+    before = faces.copy()
+    count, labels = connected_components(faces, 9)
+    assert labels.shape == (9,)
+    assert labels.dtype == np.int64
+    assert count == 3  # two tetrahedra and the unused vertex 8
+    assert len(set(labels[:4])) == 1
+    assert len(set(labels[4:8])) == 1
+    assert len({labels[0], labels[4], labels[8]}) == 3
+    np.testing.assert_array_equal(faces, before)
+
+
+def test_connected_components_bowtie_is_one_component():
+    count, labels = connected_components(BOWTIE, 5)
+    assert count == 1
+    np.testing.assert_array_equal(labels, np.zeros(5))
+
+
+def test_boundary_loops_closed_tetrahedron_has_none(tetrahedron):
+    assert boundary_loops(tetrahedron.faces) == []
+    assert boundary_edges(tetrahedron.faces).shape == (0, 2)
+    assert boundary_counts(tetrahedron.faces) == (0, 0)
+
+
+def test_boundary_loops_unit_square_is_one_loop_in_face_winding(unit_square):
+    loops = boundary_loops(unit_square.faces)
+    assert len(loops) == 1
+    assert loops[0].dtype == np.int64
+    np.testing.assert_array_equal(loops[0], [0, 1, 2, 3])
+
+
+def test_boundary_loops_reversed_faces_reverse_the_loop(unit_square):
+    (loop,) = boundary_loops(unit_square.faces[:, ::-1])
+    np.testing.assert_array_equal(loop, [0, 3, 2, 1])
+
+
+def test_boundary_edges_follow_face_winding(unit_square):
+    edges = boundary_edges(unit_square.faces)
+    assert edges.shape == (4, 2)
+    assert {tuple(e) for e in edges.tolist()} == {(0, 1), (1, 2), (2, 3), (3, 0)}
+
+
+def test_boundary_loops_bowtie_pinch_splits_into_two_triangles():
+    loops = boundary_loops(BOWTIE)
+    assert [loop.tolist() for loop in loops] == [[0, 1, 2], [0, 3, 4]]
+    assert boundary_counts(BOWTIE) == (2, 0)
+
+
+def test_boundary_paths_fin_gives_open_chain():
+    paths = boundary_paths(FIN)
+    assert len(paths.chains) == 1
+    assert len(paths.loops) == 1
+    assert boundary_counts(FIN) == (1, 1)
+    used = np.concatenate([*paths.loops, *paths.chains])
+    assert set(used.tolist()) == {0, 1, 2, 3, 4}
+
+
+def test_boundary_loops_open_hemisphere_loop_is_ordered_rim():
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    faces = sphere.faces[sphere.vertices[sphere.faces].mean(axis=1)[:, 1] > 0]  # upper half, open rim
+    (loop,) = boundary_loops(faces)
+    edges = {tuple(e) for e in boundary_edges(faces).tolist()}
+    assert len(loop) == len(edges)
+    steps = set(zip(loop.tolist(), np.roll(loop, -1).tolist(), strict=True))
+    assert steps == edges  # every step is a boundary edge, walked in face winding
+    assert loop[0] == loop.min()
+
+
+def test_boundary_counts_random_soups_match_boundary_paths():
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        n = int(rng.integers(3, 9))
+        faces = rng.integers(0, n, size=(int(rng.integers(1, 10)), 3))
+        paths = boundary_paths(faces)
+        assert boundary_counts(faces) == (len(paths.loops), len(paths.chains))
+        walked = sum(len(p) for p in paths.loops) + sum(len(p) - 1 for p in paths.chains)
+        assert walked == len(boundary_edges(faces))  # every boundary edge walked exactly once

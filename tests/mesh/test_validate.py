@@ -1,0 +1,206 @@
+"""Tests for mimetic.mesh.validate: reports with known answers on synthetic meshes."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from mimetic.errors import MeshError
+from mimetic.mesh.model import Mesh
+from mimetic.mesh.validate import MANY_COMPONENTS, MeshReport, validate_mesh
+
+
+def counts(report: MeshReport) -> dict[str, int]:
+    return {k: v for k, v in report.as_dict().items() if k.startswith("n_")}
+
+
+def test_validate_mesh_tetrahedron_is_closed_single_component(tetrahedron):
+    report = validate_mesh(tetrahedron)
+    assert isinstance(report, MeshReport)
+    assert counts(report) == dict(
+        n_vertices=4,
+        n_faces=4,
+        n_nonfinite_vertices=0,
+        n_out_of_range_faces=0,
+        n_degenerate_faces=0,
+        n_duplicate_faces=0,
+        n_nonmanifold_edges=0,
+        n_boundary_loops=0,
+        n_boundary_chains=0,
+        n_components=1,
+        n_unused_vertices=0,
+    )
+    assert report.ok
+    assert report.errors == ()
+    assert report.warnings == ()
+    assert report.bbox_min == (0.0, 0.0, 0.0)
+    assert report.bbox_max == (1.0, 1.0, 1.0)
+    assert report.extent == 1.0
+    assert report.detected_units == "dm"
+    report.raise_for_errors()  # no error: no exception
+
+
+def test_validate_mesh_unit_square_has_one_boundary_loop_and_too_few_faces(unit_square):
+    report = validate_mesh(unit_square)
+    assert report.n_boundary_loops == 1
+    assert report.n_boundary_chains == 0
+    assert report.n_components == 1
+    assert not report.ok
+    assert any("only 2 faces" in e for e in report.errors)
+
+
+def test_validate_mesh_nan_vertex_is_an_error(tetrahedron):
+    vertices = tetrahedron.vertices.copy()
+    vertices[2] = [np.nan, 0.0, 0.0]
+    report = validate_mesh(tetrahedron.with_vertices(vertices))
+    assert report.n_nonfinite_vertices == 1
+    assert not report.ok
+    assert "vertex 2" in report.errors[0]
+    assert report.bbox_max == (1.0, 0.0, 1.0)  # over the finite vertices only
+    with pytest.raises(MeshError, match=r"head\.obj: 1 vertices have NaN"):
+        report.raise_for_errors("head.obj")
+
+
+def test_validate_mesh_all_nan_vertices_have_no_bbox_and_are_json_safe(tetrahedron):
+    report = validate_mesh(tetrahedron.with_vertices(np.full((4, 3), np.inf)))
+    assert report.bbox_min is None
+    assert report.extent is None
+    assert report.detected_units is None
+    json.dumps(report.as_dict(), allow_nan=False)
+
+
+def test_validate_mesh_fin_reports_nonmanifold_edge_and_open_chain():
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1.0]])
+    faces = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4], [2, 3, 4]])
+    report = validate_mesh(Mesh(vertices, faces))
+    assert report.n_nonmanifold_edges == 1
+    assert report.n_boundary_chains >= 1
+    assert report.ok  # non-manifold is a warning, not an error
+    assert any("non-manifold" in w and "Select All by Trait" in w for w in report.warnings)
+
+
+def test_validate_mesh_duplicate_and_degenerate_faces_are_counted(tetrahedron):
+    vertices = np.concatenate([tetrahedron.vertices, [[2.0, 0.0, 0.0]]])  # 4: on the line through 0-1
+    faces = np.concatenate(
+        [
+            tetrahedron.faces,
+            [[3, 2, 1]],  # duplicate of face 3 in another order
+            [[1, 1, 2]],  # repeated index
+            [[0, 1, 4]],  # zero area: collinear
+        ]
+    )
+    report = validate_mesh(Mesh(vertices, faces))
+    assert report.n_duplicate_faces == 1
+    assert report.n_degenerate_faces == 2
+    assert report.ok
+    assert any("duplicate" in w for w in report.warnings)
+    assert any("degenerate" in w for w in report.warnings)
+
+
+def test_validate_mesh_two_disjoint_tetrahedra_are_two_components(tetrahedron):
+    mesh = Mesh.concatenate({"a": tetrahedron, "b": tetrahedron.with_vertices(tetrahedron.vertices + 5)})
+    report = validate_mesh(mesh)
+    assert report.n_components == 2
+    assert report.n_boundary_loops == 0
+    assert dict(report.part_faces) == {"a": 4, "b": 4}
+
+
+def test_validate_mesh_unused_vertex_counts_and_warns(tetrahedron):
+    mesh = Mesh(np.concatenate([tetrahedron.vertices, [[0.5, 0.5, 0.5]]]), tetrahedron.faces)
+    report = validate_mesh(mesh)
+    assert report.n_unused_vertices == 1
+    assert report.n_components == 1  # unused vertices are not components
+    assert any("Delete Loose" in w for w in report.warnings)
+
+
+def test_validate_mesh_out_of_range_face_is_error_not_crash(tetrahedron):
+    faces = np.concatenate([tetrahedron.faces, [[0, 1, 9]]])
+    report = validate_mesh(Mesh(tetrahedron.vertices, faces))
+    assert report.n_out_of_range_faces == 1
+    assert report.n_boundary_loops == 0  # the bad face is left out of topology
+    assert not report.ok
+
+
+def test_validate_mesh_empty_mesh_is_error():
+    report = validate_mesh(Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)))
+    assert report.n_components == 0
+    assert any("empty" in e for e in report.errors)
+    json.dumps(report.as_dict(), allow_nan=False)
+
+
+def test_validate_mesh_part_with_missing_face_is_error(tetrahedron):
+    report = validate_mesh(Mesh(tetrahedron.vertices, tetrahedron.faces, {"skin": [0, 7]}))
+    assert any("part 'skin'" in e for e in report.errors)
+
+
+def test_validate_mesh_triangle_soup_warns_about_many_components():
+    rng = np.random.default_rng(5)
+    n_tri = MANY_COMPONENTS + 4
+    vertices = rng.random((3 * n_tri, 3)) * 20
+    report = validate_mesh(Mesh(vertices, np.arange(3 * n_tri).reshape(-1, 3)))
+    assert report.n_components == n_tri
+    assert report.n_boundary_loops == n_tri
+    assert any("Merge by Distance" in w for w in report.warnings)
+
+
+def test_validate_mesh_declared_units_disagreeing_with_size_warn(tetrahedron):
+    scaled = Mesh(tetrahedron.vertices * 22, tetrahedron.faces, units="mm")  # 22 mm: size says cm
+    report = validate_mesh(scaled)
+    assert report.detected_units == "cm"
+    assert any('units="cm"' in w for w in report.warnings)
+
+
+def test_validate_mesh_implausible_size_warns_with_units_hint(tetrahedron):
+    report = validate_mesh(tetrahedron.with_vertices(tetrahedron.vertices * 1e6))
+    assert report.detected_units is None
+    assert any("--units" in w for w in report.warnings)
+
+
+def test_mesh_report_as_dict_is_json_safe_and_complete(tetrahedron):
+    report = validate_mesh(
+        Mesh(tetrahedron.vertices * 20, tetrahedron.faces, {"skin": [0, 1, 2, 3]}, units="cm")
+    )
+    data = json.loads(json.dumps(report.as_dict(), allow_nan=False))
+    assert {f.name for f in dataclasses.fields(MeshReport)} | {"ok"} == set(data)
+    assert data["part_faces"] == {"skin": 4}
+    assert data["bbox_max"] == [20.0, 20.0, 20.0]
+    assert data["ok"] is True
+
+
+def test_mesh_report_lines_show_errors_and_warnings(tetrahedron):
+    faces = np.concatenate([tetrahedron.faces, tetrahedron.faces[:1]])
+    vertices = tetrahedron.vertices.copy()
+    vertices[0, 0] = np.nan
+    lines = validate_mesh(Mesh(vertices, faces)).lines()
+    assert all(isinstance(line, str) for line in lines)
+    assert lines[0].startswith("vertices")
+    assert any(line.startswith("error: ") for line in lines)
+    assert any(line.startswith("warning: ") and "duplicate" in line for line in lines)
+    assert lines[-1].startswith("not usable")
+
+
+def test_mesh_report_is_frozen(tetrahedron):
+    report = validate_mesh(tetrahedron)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        report.n_faces = 3  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        report.part_faces["x"] = 1  # type: ignore[index]
+
+
+def test_validate_mesh_does_not_change_the_mesh(tetrahedron):
+    before_v, before_f = tetrahedron.vertices.copy(), tetrahedron.faces.copy()
+    validate_mesh(tetrahedron)
+    np.testing.assert_array_equal(tetrahedron.vertices, before_v)
+    np.testing.assert_array_equal(tetrahedron.faces, before_f)
+
+
+def test_mesh_report_as_dict_overflowing_extent_is_null(tetrahedron):
+    vertices = np.array([[-1e308, 0, 0], [1e308, 0, 0], [0, 1, 0], [0, 0, 1]])  # extent overflows to inf
+    report = validate_mesh(tetrahedron.with_vertices(vertices))
+    assert report.extent == np.inf
+    data = report.as_dict()
+    assert data["extent"] is None
+    json.dumps(data, allow_nan=False)
