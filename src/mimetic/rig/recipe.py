@@ -50,11 +50,11 @@ _MUSCLES_C = [
     ("procerus", "linear", "nose_bridge_upper", "glabella", 0.04, 0.3, 1.3, 35, "forehead", False),
     ("mentalis", "linear", "pogonion", (0.0, -9.0), 0.05, 0.2, 1.3, 40, "chin", True),
 ]
-# sphincters: (name, side, centre, semi-major end, semi-minor in head heights, region)
+# sphincters: (name, side, centre, semi-major end (left-side chart point, mirrored for R), semi-minor, region)
 _SPHINCTERS = [
     ("orbicularis_oris", "C", "upper_lip_inner", "mouth_corner_L", 0.05, "upper_lip"),
     ("orbicularis_oculi_L", "L", "pupil_L", (5.9, 0.2), 0.085, "eyelid_upper_L"),
-    ("orbicularis_oculi_R", "R", "pupil_R", (-5.9, 0.2), 0.085, "eyelid_upper_R"),
+    ("orbicularis_oculi_R", "R", "pupil_R", (5.9, 0.2), 0.085, "eyelid_upper_R"),
 ]
 # wires of the thesis (Table 4.1): name -> (points, driving muscles (same side), dropoff_rel, regions)
 _WIRES_L = {

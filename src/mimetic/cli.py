@@ -1,0 +1,215 @@
+"""The ``mimetic`` command (typer + rich): thin wrappers over the library.
+
+Results go to stdout; progress and errors go to stderr. Exit codes: 0 success, 1 a problem
+with the input (shown as one line, ``--debug`` for the traceback), 2 a usage error.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from mimetic.errors import MimeticError
+
+app = typer.Typer(
+    help="mimetic: turn any 3D head mesh into a muscle-driven, animatable face.",
+    no_args_is_help=True,
+    pretty_exceptions_show_locals=False,
+    add_completion=False,
+)
+stdout = Console()
+stderr = Console(stderr=True)
+_state = {"debug": False}
+
+
+@app.callback()
+def main(debug: bool = typer.Option(False, "--debug", help="Show tracebacks for input errors.")) -> None:
+    _state["debug"] = debug
+
+
+@contextmanager
+def _user_errors() -> Iterator[None]:
+    """Turn a MimeticError into one red line on stderr and exit code 1."""
+    try:
+        yield
+    except MimeticError as error:
+        if _state["debug"]:
+            raise
+        stderr.print(f"[red]error:[/] {error}", highlight=False, soft_wrap=True)
+        raise typer.Exit(1) from None
+
+
+@contextmanager
+def _progress(label: str) -> Iterator[Callable[[int, int], None]]:
+    with Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                  TimeElapsedColumn(), console=stderr, transient=True) as bar:
+        task = bar.add_task(label, total=None)
+
+        def update(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield update
+
+
+def _parse_params(items: list[str]) -> dict[str, float]:
+    from mimetic.head.params import HeadParamError
+
+    values = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            values[name.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise HeadParamError(f"--param {item!r}: expected NAME=VALUE, e.g. --param nose_length=1.1")
+    return values
+
+
+@app.command()
+def head(
+    out: Path = typer.Option(..., "-o", "--out", help="Mesh file to write (.glb, .gltf, .obj, .ply, .stl)."),
+    seed: int | None = typer.Option(None, "--seed", help="Random conformation from this seed."),
+    param: list[str] = typer.Option([], "--param", help="Set a conformation parameter, NAME=VALUE (repeatable)."),
+    resolution: int = typer.Option(10_000, "--resolution", help="Approximate skin vertex count (1,500..250,000)."),
+    rig: Path | None = typer.Option(None, "--rig", help="Also write the head's rig to this .mrig file."),
+) -> None:
+    """Generate a parametric reference head and write it as a mesh (and optionally its rig)."""
+    from mimetic.head.model import make_head
+    from mimetic.head.params import HeadParams
+    from mimetic.mesh.io import save_mesh
+
+    with _user_errors():
+        if not 1_500 <= resolution <= 250_000:
+            raise MimeticError(f"--resolution {resolution} is outside 1,500..250,000 skin vertices")
+        params = HeadParams() if seed is None else HeadParams.random(seed)
+        params = params.with_values(**_parse_params(param))
+        generated = make_head(params, resolution)
+        written = [save_mesh(generated.mesh, out)]
+        if rig is not None:
+            from mimetic.rig.format import save_rig
+            from mimetic.rig.recipe import build_rig
+
+            written.append(save_rig(build_rig(generated), rig))
+    for path in written:
+        stdout.print(f"wrote {path}", highlight=False)
+
+
+@app.command()
+def info(
+    file: Path = typer.Argument(..., help="A mesh (.obj .ply .stl .glb .gltf) or a rig (.mrig)."),
+    units: str | None = typer.Option(None, "--units", help="Override the units: mm, cm, dm or m."),
+    as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
+) -> None:
+    """Validate a mesh or rig and report its units, parts and landmarks."""
+    with _user_errors():
+        if file.suffix.lower() == ".mrig":
+            report = _rig_report(file)
+            ok = True
+        else:
+            report, ok = _mesh_report(file, units)
+    if as_json:
+        stdout.print_json(json.dumps(report))
+    else:
+        _print_report(report)
+    if not ok:
+        raise typer.Exit(1)
+
+
+def _mesh_report(file: Path, units: str | None) -> tuple[dict, bool]:
+    from mimetic.mesh.io import load_mesh
+    from mimetic.mesh.validate import validate_mesh
+
+    mesh = load_mesh(file, units=units, check=False)
+    report = validate_mesh(mesh)
+    data = {"file": str(file), "kind": "mesh", **report.as_dict(), "parts": list(mesh.parts),
+            "landmarks": "none (a plain mesh; `mimetic rig` will find them)", "lines": report.lines()}
+    return data, report.ok
+
+
+def _rig_report(file: Path) -> dict:
+    from mimetic.mesh.validate import validate_mesh
+    from mimetic.rig.format import load_rig
+
+    rig = load_rig(file)
+    report = validate_mesh(rig.mesh)
+    kinds: dict[str, int] = {}
+    for m in rig.muscles:
+        kinds[m.kind] = kinds.get(m.kind, 0) + 1
+    lines = [*report.lines(),
+             f"scale             {rig.scale:.4g} {rig.units} (head height)",
+             f"muscles           {len(rig.muscles)} ({', '.join(f'{n} {k}' for k, n in kinds.items())})",
+             f"wires             {len(rig.wires)}",
+             f"bones             {', '.join(rig.bone_names)}",
+             f"channels          {len(rig.channels)}"]
+    return {"file": str(file), "kind": "rig", **report.as_dict(), "units": rig.units, "parts": list(rig.mesh.parts),
+            "landmarks": sorted(rig.landmarks), "regions": sorted(rig.regions),
+            "muscles": [m.name for m in rig.muscles], "channels": list(rig.channel_names), "lines": lines}
+
+
+def _print_report(report: dict) -> None:
+    stdout.print(f"[bold]{report['file']}[/] ({report['kind']})", highlight=False)
+    for line in report["lines"]:
+        stdout.print(f"  {line}", highlight=False, soft_wrap=True)
+    landmarks = report["landmarks"]
+    text = landmarks if isinstance(landmarks, str) else f"{len(landmarks)}: {', '.join(landmarks)}"
+    stdout.print(f"  landmarks         {text}", highlight=False, soft_wrap=True)
+
+
+@app.command()
+def render(
+    file: Path = typer.Argument(..., help="A mesh or a .mrig rig."),
+    out: Path = typer.Option(..., "-o", "--out", help="PNG file to write."),
+    view: str = typer.Option("all", "--view", help="front, three_quarter, profile, or all (a labelled sheet)."),
+    size: int = typer.Option(512, "--size", help="Image size in pixels (per view)."),
+    wireframe: bool = typer.Option(False, "--wireframe", help="Draw the triangle edges."),
+    muscles: bool = typer.Option(True, "--muscles/--no-muscles", help="Draw a rig's muscles."),
+    units: str | None = typer.Option(None, "--units", help="Override a mesh's units: mm, cm, dm or m."),
+) -> None:
+    """Render a mesh or rig to a PNG, from one angle or three."""
+    from mimetic.view import VIEWS, contact_sheet, render as render_mesh, save_png
+
+    with _user_errors():
+        views = list(VIEWS) if view == "all" else [view]
+        unknown = [v for v in views if v not in VIEWS]
+        if unknown:
+            raise MimeticError(f"--view {view!r} is not one of: all, {', '.join(VIEWS)}")
+        if not 64 <= size <= 4096:
+            raise MimeticError(f"--size {size} is outside 64..4096 pixels")
+        if file.suffix.lower() == ".mrig":
+            from mimetic.rig.format import load_rig
+            from mimetic.view.muscles import render_rig
+
+            rig = load_rig(file)
+            tiles = [(v, render_rig(rig, v, size=size, muscles=muscles, wireframe=wireframe)) for v in views]
+        else:
+            from mimetic.mesh.io import load_mesh
+
+            mesh = load_mesh(file, units=units)
+            tiles = [(v, render_mesh(mesh, v, size=size, wireframe=wireframe)) for v in views]
+        image = tiles[0][1] if len(tiles) == 1 else contact_sheet(tiles, columns=len(tiles))
+        save_png(image, out)
+    stdout.print(f"wrote {out}", highlight=False)
+
+
+@app.command()
+def demo(
+    out: Path = typer.Option(Path("mimetic-demo"), "-o", "--out", help="Folder for the demo outputs."),
+    resolution: int = typer.Option(10_000, "--resolution", help="Approximate skin vertex count."),
+) -> None:
+    """Generate the default head and 8 random heads, rig them, and write meshes, rigs and sheets."""
+    from mimetic.demo import run_demo
+
+    with _user_errors(), _progress("demo: heads and rigs") as progress:
+        result = run_demo(out, resolution=resolution, progress=progress)
+    table = Table("file", "size", title=f"mimetic demo → {result.out_dir}")
+    for path in result.files:
+        table.add_row(str(path), f"{path.stat().st_size / 1024:,.0f} KB")
+    stdout.print(table)
