@@ -27,7 +27,9 @@ def run(*args: str):
 @pytest.fixture(scope="module")
 def rig_file(tmp_path_factory):
     out = tmp_path_factory.mktemp("cli")
-    result = run("head", "--seed", "3", "--resolution", RES, "-o", str(out / "h.glb"), "--rig", str(out / "h.mrig"))
+    result = run(
+        "head", "--seed", "3", "--resolution", RES, "-o", str(out / "h.glb"), "--rig", str(out / "h.mrig")
+    )
     assert result.exit_code == 0, result.output
     return out / "h.mrig"
 
@@ -74,12 +76,14 @@ def test_render_of_a_rig_writes_a_three_view_sheet(rig_file, tmp_path):
     assert result.exit_code == 0, result.output
     image = np.asarray(Image.open(out))
     assert image.shape[1] == 3 * 128 and image.shape[2] == 3
-    assert image.std() > 10        # a shaded head, not a blank canvas
+    assert image.std() > 10  # a shaded head, not a blank canvas
 
 
 def test_render_single_view_of_a_mesh(rig_file, tmp_path):
     out = tmp_path / "front.png"
-    result = run("render", str(rig_file.with_suffix(".glb")), "--view", "profile", "--size", "96", "-o", str(out))
+    result = run(
+        "render", str(rig_file.with_suffix(".glb")), "--view", "profile", "--size", "96", "-o", str(out)
+    )
     assert result.exit_code == 0, result.output
     assert Image.open(out).size == (96, 96)
 
@@ -92,7 +96,10 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         assert (out / name).stat().st_size > 1000, name
     assert len(list((out / "rigs").glob("seed_*.mrig"))) == 8
     assert len(list((out / "heads").glob("seed_*.glb"))) == 8
-    assert load_rig(out / "rigs" / "seed_5.mrig").metadata["params"] != load_rig(out / "default.mrig").metadata["params"]
+    assert (
+        load_rig(out / "rigs" / "seed_5.mrig").metadata["params"]
+        != load_rig(out / "default.mrig").metadata["params"]
+    )
 
 
 # --- bad input: a clear one-line error, exit code 1, no file overwritten ------------------------

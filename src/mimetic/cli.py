@@ -48,8 +48,14 @@ def _user_errors() -> Iterator[None]:
 
 @contextmanager
 def _progress(label: str) -> Iterator[Callable[[int, int], None]]:
-    with Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                  TimeElapsedColumn(), console=stderr, transient=True) as bar:
+    with Progress(
+        TextColumn(label),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(),
+        console=stderr,
+        transient=True,
+    ) as bar:
         task = bar.add_task(label, total=None)
 
         def update(done: int, total: int) -> None:
@@ -77,8 +83,12 @@ def _parse_params(items: list[str]) -> dict[str, float]:
 def head(
     out: Path = typer.Option(..., "-o", "--out", help="Mesh file to write (.glb, .gltf, .obj, .ply, .stl)."),
     seed: int | None = typer.Option(None, "--seed", help="Random conformation from this seed."),
-    param: list[str] = typer.Option([], "--param", help="Set a conformation parameter, NAME=VALUE (repeatable)."),
-    resolution: int = typer.Option(10_000, "--resolution", help="Approximate skin vertex count (1,500..250,000)."),
+    param: list[str] = typer.Option(
+        [], "--param", help="Set a conformation parameter, NAME=VALUE (repeatable)."
+    ),
+    resolution: int = typer.Option(
+        10_000, "--resolution", help="Approximate skin vertex count (1,500..250,000)."
+    ),
     rig: Path | None = typer.Option(None, "--rig", help="Also write the head's rig to this .mrig file."),
 ) -> None:
     """Generate a parametric reference head and write it as a mesh (and optionally its rig)."""
@@ -129,8 +139,14 @@ def _mesh_report(file: Path, units: str | None) -> tuple[dict, bool]:
 
     mesh = load_mesh(file, units=units, check=False)
     report = validate_mesh(mesh)
-    data = {"file": str(file), "kind": "mesh", **report.as_dict(), "parts": list(mesh.parts),
-            "landmarks": "none (a plain mesh; `mimetic rig` will find them)", "lines": report.lines()}
+    data = {
+        "file": str(file),
+        "kind": "mesh",
+        **report.as_dict(),
+        "parts": list(mesh.parts),
+        "landmarks": "none (a plain mesh; `mimetic rig` will find them)",
+        "lines": report.lines(),
+    }
     return data, report.ok
 
 
@@ -143,15 +159,26 @@ def _rig_report(file: Path) -> dict:
     kinds: dict[str, int] = {}
     for m in rig.muscles:
         kinds[m.kind] = kinds.get(m.kind, 0) + 1
-    lines = [*report.lines(),
-             f"scale             {rig.scale:.4g} {rig.units} (head height)",
-             f"muscles           {len(rig.muscles)} ({', '.join(f'{n} {k}' for k, n in kinds.items())})",
-             f"wires             {len(rig.wires)}",
-             f"bones             {', '.join(rig.bone_names)}",
-             f"channels          {len(rig.channels)}"]
-    return {"file": str(file), "kind": "rig", **report.as_dict(), "units": rig.units, "parts": list(rig.mesh.parts),
-            "landmarks": sorted(rig.landmarks), "regions": sorted(rig.regions),
-            "muscles": [m.name for m in rig.muscles], "channels": list(rig.channel_names), "lines": lines}
+    lines = [
+        *report.lines(),
+        f"scale             {rig.scale:.4g} {rig.units} (head height)",
+        f"muscles           {len(rig.muscles)} ({', '.join(f'{n} {k}' for k, n in kinds.items())})",
+        f"wires             {len(rig.wires)}",
+        f"bones             {', '.join(rig.bone_names)}",
+        f"channels          {len(rig.channels)}",
+    ]
+    return {
+        "file": str(file),
+        "kind": "rig",
+        **report.as_dict(),
+        "units": rig.units,
+        "parts": list(rig.mesh.parts),
+        "landmarks": sorted(rig.landmarks),
+        "regions": sorted(rig.regions),
+        "muscles": [m.name for m in rig.muscles],
+        "channels": list(rig.channel_names),
+        "lines": lines,
+    }
 
 
 def _print_report(report: dict) -> None:
@@ -167,14 +194,17 @@ def _print_report(report: dict) -> None:
 def render(
     file: Path = typer.Argument(..., help="A mesh or a .mrig rig."),
     out: Path = typer.Option(..., "-o", "--out", help="PNG file to write."),
-    view: str = typer.Option("all", "--view", help="front, three_quarter, profile, or all (a labelled sheet)."),
+    view: str = typer.Option(
+        "all", "--view", help="front, three_quarter, profile, or all (a labelled sheet)."
+    ),
     size: int = typer.Option(512, "--size", help="Image size in pixels (per view)."),
     wireframe: bool = typer.Option(False, "--wireframe", help="Draw the triangle edges."),
     muscles: bool = typer.Option(True, "--muscles/--no-muscles", help="Draw a rig's muscles."),
     units: str | None = typer.Option(None, "--units", help="Override a mesh's units: mm, cm, dm or m."),
 ) -> None:
     """Render a mesh or rig to a PNG, from one angle or three."""
-    from mimetic.view import VIEWS, contact_sheet, render as render_mesh, save_png
+    from mimetic.view import VIEWS, contact_sheet, save_png
+    from mimetic.view import render as render_mesh
 
     with _user_errors():
         views = list(VIEWS) if view == "all" else [view]

@@ -54,8 +54,10 @@ def run_demo(
         if seed is None:
             files.append(save_mesh(head.mesh, out / "head.glb"))
             files.append(save_rig(rig, out / "default.mrig"))
-            views = [(view, render_rig(rig, view, size=size, muscles=False, renderer=renderer))
-                     for view in ("front", "three_quarter", "profile")]
+            views = [
+                (view, render_rig(rig, view, size=size, muscles=False, renderer=renderer))
+                for view in ("front", "three_quarter", "profile")
+            ]
             files.append(save_png(contact_sheet(views, columns=3), out / "default_views.png"))
             label = "default"
         else:
@@ -63,7 +65,9 @@ def run_demo(
             files.append(save_rig(rig, out / "rigs" / f"seed_{seed}.mrig"))
             label = f"seed {seed}"
         tiles.append((f"{label}: front", render_rig(rig, "front", size=size, renderer=renderer)))
-        tiles.append((f"{label}: three-quarter", render_rig(rig, "three_quarter", size=size, renderer=renderer)))
+        tiles.append(
+            (f"{label}: three-quarter", render_rig(rig, "three_quarter", size=size, renderer=renderer))
+        )
         if progress:
             progress(done + 1, total)
     files.append(save_png(contact_sheet(tiles, columns=6), out / "heads_muscles.png"))

@@ -86,9 +86,8 @@ class FaceDetection:
         names = list(MEDIAPIPE_POINTS) if names is None else list(names)
         unknown = [n for n in names if n not in MEDIAPIPE_POINTS]
         if unknown:
-            raise LandmarkError(
-                f"no MediaPipe index for {', '.join(map(repr, unknown))}; known: {', '.join(MEDIAPIPE_POINTS)}"
-            )
+            known = ", ".join(MEDIAPIPE_POINTS)
+            raise LandmarkError(f"no MediaPipe index for {', '.join(map(repr, unknown))}; known: {known}")
         if not self.found:
             raise LandmarkError(f"no face was found (detection score {self.score:.2f}), so no landmarks")
         return self.landmarks[[MEDIAPIPE_POINTS[n] for n in names]]
@@ -183,7 +182,9 @@ def detect_face(image: np.ndarray, *, min_score: float = 0.5) -> FaceDetection:
     """
     array = np.asarray(image)
     if array.ndim != 3 or array.shape[2] != 3 or array.dtype != np.uint8 or 0 in array.shape:
-        raise ValueError(f"image must be a non-empty (h, w, 3) uint8 RGB array; got {array.shape} {array.dtype}")
+        raise ValueError(
+            f"image must be a non-empty (h, w, 3) uint8 RGB array; got {array.shape} {array.dtype}"
+        )
     if not 0.0 <= min_score <= 1.0:
         raise ValueError(f"min_score={min_score} must be in [0, 1]")
     array = np.ascontiguousarray(array)

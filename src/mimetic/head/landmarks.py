@@ -22,42 +22,102 @@ from mimetic.mesh.model import Mesh
 
 # iBUG / Multi-PIE 68-point order (0-based) -> landmark name
 IBUG68: tuple[str, ...] = (
-    *(f"jaw_R{k}" for k in range(1, 9)), "menton", *(f"jaw_L{k}" for k in range(8, 0, -1)),
-    "brow_outer_R", "brow_outer_mid_R", "brow_mid_R", "brow_inner_mid_R", "brow_inner_R",
-    "brow_inner_L", "brow_inner_mid_L", "brow_mid_L", "brow_outer_mid_L", "brow_outer_L",
-    "nasion", "nose_bridge_upper", "nose_bridge_lower", "nose_tip",
-    "alar_base_R", "nostril_R", "subnasale", "nostril_L", "alar_base_L",
-    "eye_outer_corner_R", "eye_upper_lid_outer_R", "eye_upper_lid_inner_R", "eye_inner_corner_R",
-    "eye_lower_lid_inner_R", "eye_lower_lid_outer_R",
-    "eye_inner_corner_L", "eye_upper_lid_inner_L", "eye_upper_lid_outer_L", "eye_outer_corner_L",
-    "eye_lower_lid_outer_L", "eye_lower_lid_inner_L",
-    "mouth_corner_R", "upper_lip_outer_R", "upper_lip_peak_R", "upper_lip_top", "upper_lip_peak_L",
-    "upper_lip_outer_L", "mouth_corner_L", "lower_lip_outer_L", "lower_lip_mid_L", "lower_lip_bottom",
-    "lower_lip_mid_R", "lower_lip_outer_R",
-    "mouth_corner_R", "upper_lip_inner_R", "upper_lip_inner", "upper_lip_inner_L",
-    "mouth_corner_L", "lower_lip_inner_L", "lower_lip_inner", "lower_lip_inner_R",
+    *(f"jaw_R{k}" for k in range(1, 9)),
+    "menton",
+    *(f"jaw_L{k}" for k in range(8, 0, -1)),
+    "brow_outer_R",
+    "brow_outer_mid_R",
+    "brow_mid_R",
+    "brow_inner_mid_R",
+    "brow_inner_R",
+    "brow_inner_L",
+    "brow_inner_mid_L",
+    "brow_mid_L",
+    "brow_outer_mid_L",
+    "brow_outer_L",
+    "nasion",
+    "nose_bridge_upper",
+    "nose_bridge_lower",
+    "nose_tip",
+    "alar_base_R",
+    "nostril_R",
+    "subnasale",
+    "nostril_L",
+    "alar_base_L",
+    "eye_outer_corner_R",
+    "eye_upper_lid_outer_R",
+    "eye_upper_lid_inner_R",
+    "eye_inner_corner_R",
+    "eye_lower_lid_inner_R",
+    "eye_lower_lid_outer_R",
+    "eye_inner_corner_L",
+    "eye_upper_lid_inner_L",
+    "eye_upper_lid_outer_L",
+    "eye_outer_corner_L",
+    "eye_lower_lid_outer_L",
+    "eye_lower_lid_inner_L",
+    "mouth_corner_R",
+    "upper_lip_outer_R",
+    "upper_lip_peak_R",
+    "upper_lip_top",
+    "upper_lip_peak_L",
+    "upper_lip_outer_L",
+    "mouth_corner_L",
+    "lower_lip_outer_L",
+    "lower_lip_mid_L",
+    "lower_lip_bottom",
+    "lower_lip_mid_R",
+    "lower_lip_outer_R",
+    "mouth_corner_R",
+    "upper_lip_inner_R",
+    "upper_lip_inner",
+    "upper_lip_inner_L",
+    "mouth_corner_L",
+    "lower_lip_inner_L",
+    "lower_lip_inner",
+    "lower_lip_inner_R",
 )
 
 # MediaPipe FaceMesh indices of a few landmarks (for detector checks; see mediapipe-offline.md)
 MEDIAPIPE: dict[str, int] = {
-    "eye_outer_corner_R": 33, "eye_inner_corner_R": 133, "eye_inner_corner_L": 362,
-    "eye_outer_corner_L": 263, "mouth_corner_R": 61, "mouth_corner_L": 291, "nose_tip": 4,
+    "eye_outer_corner_R": 33,
+    "eye_inner_corner_R": 133,
+    "eye_inner_corner_L": 362,
+    "eye_outer_corner_L": 263,
+    "mouth_corner_R": 61,
+    "mouth_corner_L": 291,
+    "nose_tip": 4,
     "menton": 152,
 }
 
 # eye-ring angles (t = 0 at the lateral canthus, counter-clockwise on the left eye)
 _EYE_ANGLES = {
-    "eye_outer_corner": 0.0, "eye_upper_lid_outer": np.pi / 3, "eye_upper_lid": np.pi / 2,
-    "eye_upper_lid_inner": 2 * np.pi / 3, "eye_inner_corner": np.pi,
-    "eye_lower_lid_inner": 4 * np.pi / 3, "eye_lower_lid": 3 * np.pi / 2, "eye_lower_lid_outer": 5 * np.pi / 3,
+    "eye_outer_corner": 0.0,
+    "eye_upper_lid_outer": np.pi / 3,
+    "eye_upper_lid": np.pi / 2,
+    "eye_upper_lid_inner": 2 * np.pi / 3,
+    "eye_inner_corner": np.pi,
+    "eye_lower_lid_inner": 4 * np.pi / 3,
+    "eye_lower_lid": 3 * np.pi / 2,
+    "eye_lower_lid_outer": 5 * np.pi / 3,
 }
 # brow points: chart offsets from the left eye centre (medial is -X)
-_BROW = {"brow_inner": (-1.75, 1.3), "brow_inner_mid": (-0.95, 1.75), "brow_mid": (0.0, 1.95),
-         "brow_outer_mid": (0.95, 1.85), "brow_outer": (1.8, 1.4)}
+_BROW = {
+    "brow_inner": (-1.75, 1.3),
+    "brow_inner_mid": (-0.95, 1.75),
+    "brow_mid": (0.0, 1.95),
+    "brow_outer_mid": (0.95, 1.85),
+    "brow_outer": (1.8, 1.4),
+}
 # lip points on the left half: (ring, xi = x / half-width, upper?)
-_LIP = {"upper_lip_peak": ("border", 0.22, True), "upper_lip_outer": ("border", 0.6, True),
-        "lower_lip_mid": ("border", 0.27, False), "lower_lip_outer": ("border", 0.62, False),
-        "upper_lip_inner": ("contact", 0.45, True), "lower_lip_inner": ("contact", 0.45, False)}
+_LIP = {
+    "upper_lip_peak": ("border", 0.22, True),
+    "upper_lip_outer": ("border", 0.6, True),
+    "lower_lip_mid": ("border", 0.27, False),
+    "lower_lip_outer": ("border", 0.62, False),
+    "upper_lip_inner": ("contact", 0.45, True),
+    "lower_lip_inner": ("contact", 0.45, False),
+}
 
 
 def _nearest_angle(t_ring: np.ndarray, t: float) -> int:
@@ -90,7 +150,7 @@ def skin_landmarks(topo: HeadTopology, mesh: Mesh, pieces: Mapping[str, Mesh]) -
     start = 0
     for part, piece in pieces.items():
         if part in ("eye_L", "eye_R"):
-            out[f"pupil_{part[-1]}"] = start        # the eyeball's front pole is its vertex 0
+            out[f"pupil_{part[-1]}"] = start  # the eyeball's front pole is its vertex 0
         start += piece.n_vertices
 
     # brows
@@ -136,10 +196,10 @@ def skin_landmarks(topo: HeadTopology, mesh: Mesh, pieces: Mapping[str, Mesh]) -
     skin_front = np.nonzero((v[:, 2] > -1.0) & (v[:, 1] < 0.0))[0]
     centre = np.array([0.0, -2.0])
     rel = v[skin_front, :2] - centre
-    ang = np.arctan2(rel[:, 1], rel[:, 0])                 # -pi/2 = straight down
+    ang = np.arctan2(rel[:, 1], rel[:, 0])  # -pi/2 = straight down
     radius = np.linalg.norm(rel, axis=1)
     for k in range(1, 9):
-        a = np.pi * (-(k - 1) / 8.5) * 0.5 - 0.02           # from horizontal (left) towards down
+        a = np.pi * (-(k - 1) / 8.5) * 0.5 - 0.02  # from horizontal (left) towards down
         band = np.abs(np.angle(np.exp(1j * (ang - a)))) < 0.04
         left = int(skin_front[band][np.argmax(radius[band])])
         out[f"jaw_L{k}"] = left

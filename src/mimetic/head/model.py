@@ -110,11 +110,13 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
         "ear_R": parts.ear(tragus_l * np.array([-1.0, 1.0, 1.0]), -1.0, s),
     }
     for name in ("ear_L", "ear_R"):
-        pieces[name] = Mesh(pieces[name].vertices, pieces[name].faces, colors=np.tile(SKIN, (pieces[name].n_vertices, 1)))
+        pieces[name] = Mesh(
+            pieces[name].vertices, pieces[name].faces, colors=np.tile(SKIN, (pieces[name].n_vertices, 1))
+        )
     mesh = Mesh.concatenate(pieces, units="cm")
     mirror = _mirror_map(mesh, topo, pieces)
     v = mesh.vertices
-    v = 0.5 * (v + v[mirror] * np.array([-1.0, 1.0, 1.0]))      # exact symmetry
+    v = 0.5 * (v + v[mirror] * np.array([-1.0, 1.0, 1.0]))  # exact symmetry
     v = v * np.array([params.head_width, params.head_height, params.head_depth])
     mesh = mesh.with_vertices(v)
     return Head(
@@ -125,7 +127,8 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
         mirror=mirror,
         landmarks=skin_landmarks(topo, mesh, pieces),
         regions=skin_regions(topo),
-        eye_centres=np.stack([eye_l, eye_r]) * np.array([params.head_width, params.head_height, params.head_depth]),
+        eye_centres=np.stack([eye_l, eye_r])
+        * np.array([params.head_width, params.head_height, params.head_depth]),
         eye_radius=geo.eye_radius,
     )
 
@@ -148,8 +151,14 @@ def _mirror_map(mesh: Mesh, topo: HeadTopology, pieces: Mapping[str, Mesh]) -> n
     for name, piece in pieces.items():
         offsets[name] = (start, start + piece.n_vertices)
         start += piece.n_vertices
-    pairs = [("eye_L", "eye_R"), ("ear_L", "ear_R"), ("teeth_upper",) * 2, ("teeth_lower",) * 2,
-             ("tongue",) * 2, ("mouth",) * 2]
+    pairs = [
+        ("eye_L", "eye_R"),
+        ("ear_L", "ear_R"),
+        ("teeth_upper",) * 2,
+        ("teeth_lower",) * 2,
+        ("tongue",) * 2,
+        ("mouth",) * 2,
+    ]
     for a, b in pairs:
         a0, a1 = offsets[a]
         b0, b1 = offsets[b]

@@ -17,7 +17,7 @@ PUPIL = (0.03, 0.03, 0.03)
 TOOTH = (0.93, 0.91, 0.83)
 TONGUE = (0.78, 0.38, 0.38)
 MOUTH = (0.45, 0.18, 0.18)
-IRIS_ANGLE = 0.52    # angular radius of the iris on the eyeball, rad
+IRIS_ANGLE = 0.52  # angular radius of the iris on the eyeball, rad
 PUPIL_ANGLE = 0.19
 
 
@@ -63,7 +63,9 @@ def _lathe(profile_angles: np.ndarray, radius_of, cols: int) -> tuple[np.ndarray
     phi = 2 * np.pi * np.arange(cols) / cols
     th = profile_angles[:, None]
     r = radius_of(th)
-    rings = np.stack([r * np.sin(th) * np.cos(phi), r * np.sin(th) * np.sin(phi), r * np.cos(th) + 0 * phi], -1)
+    rings = np.stack(
+        [r * np.sin(th) * np.cos(phi), r * np.sin(th) * np.sin(phi), r * np.cos(th) + 0 * phi], -1
+    )
     front = np.array([0.0, 0.0, float(radius_of(np.array(0.0)))])
     back = np.array([0.0, 0.0, -float(radius_of(np.array(np.pi)))])
     return _closed_grid(front, rings, back)
@@ -72,10 +74,12 @@ def _lathe(profile_angles: np.ndarray, radius_of, cols: int) -> tuple[np.ndarray
 def eyeball(centre: np.ndarray, radius: float, s: float) -> Mesh:
     """An eyeball looking down +Z with sclera, iris and pupil colours and a slight cornea bulge."""
     cols = max(16, 4 * round(8 * s))
-    front = np.concatenate([
-        np.linspace(0, PUPIL_ANGLE, max(2, round(2 * s)) + 1)[1:],
-        np.linspace(PUPIL_ANGLE, IRIS_ANGLE, max(3, round(4 * s)) + 1)[1:],
-    ])
+    front = np.concatenate(
+        [
+            np.linspace(0, PUPIL_ANGLE, max(2, round(2 * s)) + 1)[1:],
+            np.linspace(PUPIL_ANGLE, IRIS_ANGLE, max(3, round(4 * s)) + 1)[1:],
+        ]
+    )
     back = np.linspace(IRIS_ANGLE, np.pi, max(8, round(12 * s)) + 1)[1:-1]
     angles = np.concatenate([front, back])
 
@@ -85,8 +89,11 @@ def eyeball(centre: np.ndarray, radius: float, s: float) -> Mesh:
 
     v, f = _lathe(angles, radius_of, cols)
     polar = np.arccos(np.clip(v[:, 2] / np.linalg.norm(v, axis=1), -1, 1))
-    colors = np.where((polar <= PUPIL_ANGLE + 1e-9)[:, None], PUPIL,
-                      np.where((polar <= IRIS_ANGLE + 1e-9)[:, None], IRIS, SCLERA))
+    colors = np.where(
+        (polar <= PUPIL_ANGLE + 1e-9)[:, None],
+        PUPIL,
+        np.where((polar <= IRIS_ANGLE + 1e-9)[:, None], IRIS, SCLERA),
+    )
     ring = np.abs(polar - 0.75 * IRIS_ANGLE) < 0.5 * (IRIS_ANGLE - PUPIL_ANGLE)
     colors = np.where(ring[:, None], np.array(IRIS) * 1.25, colors)
     return Mesh(v + centre, f, colors=colors.astype(np.float32))
@@ -101,7 +108,7 @@ def _arch(width: float, depth: float, s: float, n: int) -> tuple[np.ndarray, np.
     tangent = np.gradient(pts, axis=0)
     normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    normal *= np.sign(normal[n // 2, 1])   # point forward (+z) at the front
+    normal *= np.sign(normal[n // 2, 1])  # point forward (+z) at the front
     return pts, normal
 
 
@@ -111,7 +118,7 @@ def teeth(front: np.ndarray, upper: bool, s: float) -> Mesh:
     pts, nrm = _arch(2.15 if upper else 1.95, 2.8, s, n)
     thick, height = 0.65, 1.1
     a = np.linspace(-1, 1, n)
-    tooth = 0.04 * np.abs(np.sin(a * np.pi * 8)) ** 0.3       # separations between teeth
+    tooth = 0.04 * np.abs(np.sin(a * np.pi * 8)) ** 0.3  # separations between teeth
     sign = 1.0 if upper else -1.0
     # cross-section: labial-top, labial-edge, lingual-edge, lingual-top (a closed loop of 4)
     section = [(0.0, sign * height), (0.0, 0.0), (-thick, 0.0), (-thick, sign * height)]
@@ -119,7 +126,7 @@ def teeth(front: np.ndarray, upper: bool, s: float) -> Mesh:
     for off, dy in section:
         xz = pts + nrm * (off + tooth)[:, None]
         rows.append(np.column_stack([xz[:, 0], np.full(n, dy), xz[:, 1]]))
-    grid = np.stack(rows, axis=1).reshape(-1, 3)      # (n*4, 3): arch position major
+    grid = np.stack(rows, axis=1).reshape(-1, 3)  # (n*4, 3): arch position major
     faces = _grid_faces(n, 4)
     cap = np.array([[0, 1, 2], [0, 2, 3]])
     faces = np.concatenate([faces, cap, (n - 1) * 4 + cap[:, ::-1]])
@@ -156,9 +163,13 @@ def mouth_cavity(rim: np.ndarray, s: float) -> Mesh:
         depth = 6.0 * f**0.9
         wx = width * (1.0 + 0.15 * np.sin(np.pi * min(f * 1.6, 1.0))) * (1 - 0.55 * f**2)
         hy = 0.4 + 1.9 * np.sin(np.pi * min(f * 1.3, 1.0) / 2) * (1 - 0.5 * f**2)
-        rows.append(np.column_stack([wx * np.cos(t), centre[1] - 0.4 * f + hy * np.sin(t), np.full(k, centre[2] - depth)]))
+        rows.append(
+            np.column_stack(
+                [wx * np.cos(t), centre[1] - 0.4 * f + hy * np.sin(t), np.full(k, centre[2] - depth)]
+            )
+        )
     grid = np.concatenate(rows)
-    body = _grid_faces(loops + 1, k)[:, ::-1]      # rim traversed opposite to the skin's
+    body = _grid_faces(loops + 1, k)[:, ::-1]  # rim traversed opposite to the skin's
     back_centre = np.array([[0.0, centre[1] - 0.5, centre[2] - 6.3]])
     verts = np.concatenate([grid, back_centre])
     cap = _cap(len(verts) - 1, loops * k + np.arange(k), flip=False)
@@ -173,21 +184,23 @@ def ear(tragus: np.ndarray, side: float, s: float) -> Mesh:
     """
     cols = max(24, 4 * round(10 * s))
     rows = max(8, round(10 * s))
-    phi = 2 * np.pi * np.arange(cols) / cols          # 0 = front, π/2 = top
+    phi = 2 * np.pi * np.arange(cols) / cols  # 0 = front, π/2 = top
     rho = np.linspace(0, 1, rows + 1)[1:]
     P, R = np.meshgrid(phi, rho)
     sx = np.cos(P) * (1.55 - 0.2 * np.sin(P)) * np.where(np.sin(P) < 0, 1 + 0.35 * np.sin(P), 1.0)
     sy = np.sin(P) * np.where(np.sin(P) > 0, 3.1, 2.9)
     ex, ey = R * sx, R * sy
-    helix = 0.42 * np.exp(-(((R - 0.9) / 0.1) ** 2)) * (1 - 0.6 * np.clip(np.cos(P), 0, 1) * (np.sin(P) < 0.3))
+    helix = (
+        0.42 * np.exp(-(((R - 0.9) / 0.1) ** 2)) * (1 - 0.6 * np.clip(np.cos(P), 0, 1) * (np.sin(P) < 0.3))
+    )
     scapha = -0.18 * np.exp(-(((R - 0.72) / 0.08) ** 2)) * (np.sin(P) > -0.2)
     antihelix = 0.22 * np.exp(-(((R - 0.55) / 0.1) ** 2)) * (np.sin(P) > -0.5)
     concha = -0.65 * np.exp(-(((ex - 0.15) / 0.75) ** 2) - ((ey + 0.35) / 1.0) ** 2)
     lobe = 0.2 * np.exp(-(((ey + 2.2) / 0.6) ** 2))
     front_h = 0.35 + helix + scapha + antihelix + concha + lobe
     back_h = -0.35 * (1 - R**2) - 0.1
-    front = np.stack([ex, ey, front_h], -1)                       # (rows, cols, 3), inward to rim
-    back = np.stack([ex, ey, back_h], -1)[:-1][::-1]              # from the rim back inward
+    front = np.stack([ex, ey, front_h], -1)  # (rows, cols, 3), inward to rim
+    back = np.stack([ex, ey, back_h], -1)[:-1][::-1]  # from the rim back inward
     pole_f = np.array([0.0, 0.0, float(front_h[0].mean())])
     local, faces = _closed_grid(pole_f, np.concatenate([front, back]), np.array([0.0, 0.0, -0.45]))
     # local frame: x = forward along the head, y = up, h = outward; tilt the ear back 15°,
@@ -200,7 +213,9 @@ def ear(tragus: np.ndarray, side: float, s: float) -> Mesh:
     fwd_t = np.cos(tilt) * fwd + np.sin(tilt) * up
     out_f = np.cos(flare) * out + np.sin(flare) * (-fwd_t)
     fwd_f = np.cross(up_t, out_f) * side
-    world = tragus + (local[:, 0:1] - 1.45) * fwd_f + (local[:, 1:2] - 0.2) * up_t + (local[:, 2:3] - 0.2) * out_f
+    world = (
+        tragus + (local[:, 0:1] - 1.45) * fwd_f + (local[:, 1:2] - 0.2) * up_t + (local[:, 2:3] - 0.2) * out_f
+    )
     if _signed_volume(world, faces) < 0:
         faces = faces[:, ::-1]
     return Mesh(world, faces)

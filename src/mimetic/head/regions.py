@@ -15,9 +15,25 @@ from mimetic.head.shape import Layout, skin_geometry
 from mimetic.head.topology import EYE_CENTRE, HeadTopology
 
 REGION_NAMES = (
-    "upper_lip", "lower_lip", "eyelid_upper_L", "eyelid_upper_R", "eyelid_lower_L", "eyelid_lower_R",
-    "brow_L", "brow_R", "forehead", "nose", "cheek_L", "cheek_R", "nasolabial_L", "nasolabial_R",
-    "chin", "jaw_L", "jaw_R", "neck", "scalp",
+    "upper_lip",
+    "lower_lip",
+    "eyelid_upper_L",
+    "eyelid_upper_R",
+    "eyelid_lower_L",
+    "eyelid_lower_R",
+    "brow_L",
+    "brow_R",
+    "forehead",
+    "nose",
+    "cheek_L",
+    "cheek_R",
+    "nasolabial_L",
+    "nasolabial_R",
+    "chin",
+    "jaw_L",
+    "jaw_R",
+    "neck",
+    "scalp",
 )
 
 
@@ -49,7 +65,9 @@ def skin_regions(topo: HeadTopology) -> dict[str, np.ndarray]:
     brow = front & ((((np.abs(X) - ex) / 2.4) ** 2 + ((Y - ey - 1.8) / 0.7) ** 2) < 1) & ~lid
     masks["brow_L"] = brow & left
     masks["forehead"] = front & (Y > ey + 2.5) & (v[:, 1] < 9.0) & (np.abs(X) < 6.0)
-    nose_w = np.interp(Y, [L.subnasale_y, L.tip_y, 0.9], [L.alar_half_width + 0.45, L.alar_half_width + 0.3, 0.9])
+    nose_w = np.interp(
+        Y, [L.subnasale_y, L.tip_y, 0.9], [L.alar_half_width + 0.45, L.alar_half_width + 0.3, 0.9]
+    )
     nose = front & (np.abs(X) < nose_w) & (Y > L.subnasale_y - 0.1) & (Y < 1.2) & ~is_mouth & ~is_eye
     masks["nose"] = nose
     # nasolabial band: within 0.8 of the fold line from the alar base to beside the mouth corner
@@ -62,13 +80,23 @@ def skin_regions(topo: HeadTopology) -> dict[str, np.ndarray]:
     lips = masks["upper_lip"] | masks["lower_lip"] | (is_mouth & (u <= 1.5))
     fold = front & (dist < 0.8) & ~lips & ~nose & ~is_eye
     masks["nasolabial_L"] = fold & left
-    cheek = front & (np.abs(X) < 6.5) & (Y < -1.3) & (Y > L.mouth_centre[1] + 0.5) & ~is_mouth & ~nose & ~fold & ~is_eye
+    cheek = (
+        front
+        & (np.abs(X) < 6.5)
+        & (Y < -1.3)
+        & (Y > L.mouth_centre[1] + 0.5)
+        & ~is_mouth
+        & ~nose
+        & ~fold
+        & ~is_eye
+    )
     cheek &= ~((np.abs(X) < a[0]) & (Y > a[1]))
     masks["cheek_L"] = cheek & left
     chin = front & (Y < L.mouth_centre[1] - 1.5) & (np.abs(X) < 2.6) & (v[:, 1] > -12.3) & ~is_mouth
     masks["chin"] = chin
     jaw = (v[:, 1] > -12.3) & (v[:, 1] < -4.0) & (v[:, 2] > -3.0) & ~front | (
-        front & (Y < L.mouth_centre[1] + 0.5) & ~chin & ~is_mouth & ~fold & ~cheek & (v[:, 1] > -12.3))
+        front & (Y < L.mouth_centre[1] + 0.5) & ~chin & ~is_mouth & ~fold & ~cheek & (v[:, 1] > -12.3)
+    )
     masks["jaw_L"] = jaw & left & ~chin
     masks["neck"] = (v[:, 1] <= -12.3) & ~chin
     masks["scalp"] = ((v[:, 1] > 9.0) | ((v[:, 2] < -3.0) & (v[:, 1] > -6.0))) & ~masks["forehead"]

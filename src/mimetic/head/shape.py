@@ -25,7 +25,6 @@ import numpy as np
 
 from mimetic.head.params import HeadParams
 from mimetic.head.topology import (
-    CHART_D,
     EYE_CENTRE,
     EYE_OUTER,
     MOUTH_CENTRE,
@@ -35,10 +34,10 @@ from mimetic.head.topology import (
     direction_to_chart,
 )
 
-EYE_RADIUS = 1.2          # eyeball radius, cm (scaled by eye_size)
-LID_GAP = 0.08            # lid thickness over the eyeball at the margin, cm
-NASION_Y = 0.9            # chart Y of the nasion
-SUBNASALE_DROP = 5.8      # nasion-to-subnasale chart length at nose_length = 1
+EYE_RADIUS = 1.2  # eyeball radius, cm (scaled by eye_size)
+LID_GAP = 0.08  # lid thickness over the eyeball at the margin, cm
+NASION_Y = 0.9  # chart Y of the nasion
+SUBNASALE_DROP = 5.8  # nasion-to-subnasale chart length at nose_length = 1
 
 
 def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
@@ -54,15 +53,15 @@ def _gauss(X: np.ndarray, Y: np.ndarray, cx: float, cy: float, sx: float, sy: fl
 class Layout:
     """Feature placement for one parameter set, in chart units (about cm on the face)."""
 
-    eye_centre: np.ndarray     # (2,) left eye; the right eye is its mirror
+    eye_centre: np.ndarray  # (2,) left eye; the right eye is its mirror
     eye_scale: float
-    mouth_centre: np.ndarray   # (2,)
-    mouth_scale: np.ndarray    # (2,) x, y
+    mouth_centre: np.ndarray  # (2,)
+    mouth_scale: np.ndarray  # (2,) x, y
     subnasale_y: float
     tip_y: float
     nose_projection: float
     alar_half_width: float
-    chin_shift: float          # cm the chin and jaw move down
+    chin_shift: float  # cm the chin and jaw move down
 
     @staticmethod
     def of(p: HeadParams) -> Layout:
@@ -111,10 +110,10 @@ def warp_chart(chart: np.ndarray, layout: Layout) -> np.ndarray:
 def eye_margin(t: np.ndarray) -> np.ndarray:
     """Left-eye lid margin (k, 2) relative to the eye centre; t = 0 at the lateral canthus."""
     c, s = np.cos(t), np.sin(t)
-    half = np.where(c >= 0, 1.55, 1.55)                 # lateral, medial half-width
-    up = 0.56 * (1.0 - 0.18 * c) * np.abs(s) ** 0.85     # upper lid peaks a little medially
+    half = np.where(c >= 0, 1.55, 1.55)  # lateral, medial half-width
+    up = 0.56 * (1.0 - 0.18 * c) * np.abs(s) ** 0.85  # upper lid peaks a little medially
     low = -0.40 * (1.0 + 0.15 * c) * np.abs(s) ** 1.1
-    y = np.where(s >= 0, up, low) + 0.10 * c - 0.05      # lateral canthus higher (canthal tilt)
+    y = np.where(s >= 0, up, low) + 0.10 * c - 0.05  # lateral canthus higher (canthal tilt)
     return np.column_stack([half * c * np.abs(c) ** 0.15, y])
 
 
@@ -136,7 +135,7 @@ def lip_profiles(xi: np.ndarray, p: HeadParams) -> tuple[np.ndarray, np.ndarray]
     return upper, lower
 
 
-MOUTH_HALF = 2.5    # canonical half-width of the mouth (corner to centre), cm
+MOUTH_HALF = 2.5  # canonical half-width of the mouth (corner to centre), cm
 
 
 def mouth_ring_chart(u: np.ndarray, t: np.ndarray, p: HeadParams) -> np.ndarray:
@@ -179,14 +178,16 @@ def _smin(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
 def base_field(p: np.ndarray, params: HeadParams, layout: Layout) -> np.ndarray:
     """Approximate signed distance (…,) of points (…, 3) to the base head (negative inside)."""
     jw, ch = params.jaw_width, layout.chin_shift
-    f = _superellipsoid(p, (0, 2.7, -0.9), (7.75, 8.9, 9.7), 2.0, 2.4)            # cranium
-    f = _smin(f, _ellipsoid(p, (0, -0.8, 1.7), (6.9, 7.4, 7.15)), 2.0)            # upper face
-    f = _smin(f, _ellipsoid(p, (0, -5.4, 3.5), (4.9, 3.6, 6.3)), 1.6)              # maxilla
-    f = _smin(f, _superellipsoid(p, (0, -7.3 - 0.7 * ch, 0.8), (5.6 * jw, 3.4 + 0.3 * ch, 6.6), 2.6, 3.0), 1.4)
-    f = _smin(f, _ellipsoid(p, (0, -9.8 - ch, 5.6), (2.9, 2.2, 3.2)), 1.4)          # chin
+    f = _superellipsoid(p, (0, 2.7, -0.9), (7.75, 8.9, 9.7), 2.0, 2.4)  # cranium
+    f = _smin(f, _ellipsoid(p, (0, -0.8, 1.7), (6.9, 7.4, 7.15)), 2.0)  # upper face
+    f = _smin(f, _ellipsoid(p, (0, -5.4, 3.5), (4.9, 3.6, 6.3)), 1.6)  # maxilla
+    f = _smin(
+        f, _superellipsoid(p, (0, -7.3 - 0.7 * ch, 0.8), (5.6 * jw, 3.4 + 0.3 * ch, 6.6), 2.6, 3.0), 1.4
+    )
+    f = _smin(f, _ellipsoid(p, (0, -9.8 - ch, 5.6), (2.9, 2.2, 3.2)), 1.4)  # chin
     neck = _superellipsoid(p, (0, -14.0, -2.2), (4.8, 10.0, 4.7), 2.0, 6.0)
     f = _smin(f, neck, 1.6)
-    return -_smin(-f, p[..., 1] + 19.5, 1.2)                                        # neck cut
+    return -_smin(-f, p[..., 1] + 19.5, 1.2)  # neck cut
 
 
 def base_radius(directions: np.ndarray, params: HeadParams, layout: Layout) -> np.ndarray:
@@ -208,13 +209,15 @@ def nose_height(X: np.ndarray, Y: np.ndarray, L: Layout) -> np.ndarray:
     """Height (k,) of the nose above the base surface at chart points."""
     P, W = 0.85 * L.nose_projection, L.alar_half_width
     span = NASION_Y - L.tip_y
-    s = np.clip((NASION_Y - Y) / span, 0.0, None)                         # 0 nasion .. 1 tip
+    s = np.clip((NASION_Y - Y) / span, 0.0, None)  # 0 nasion .. 1 tip
     dorsum = np.where(s <= 1, 0.15 + (P - 0.15) * s**1.35, 0.0)
     width = 0.62 + 0.55 * np.clip(s, 0, 1) ** 1.5
     below = np.clip((L.tip_y - Y) / (L.tip_y - L.subnasale_y), 0.0, None)  # 0 tip .. 1 subnasale
     under = np.where((s > 1) & (below <= 1.0), P * (1 - below**1.7) + 0.35 * below, 0.0)
     under_w = 1.17 - 0.5 * np.clip(below, 0, 1) ** 0.7
-    ridge = np.where(s <= 1, dorsum * np.exp(-1.4 * (X / width) ** 2), under * np.exp(-1.4 * (X / under_w) ** 2))
+    ridge = np.where(
+        s <= 1, dorsum * np.exp(-1.4 * (X / width) ** 2), under * np.exp(-1.4 * (X / under_w) ** 2)
+    )
     top_fade = smoothstep(-0.6, 0.4, (NASION_Y + 0.5 - Y) / 0.5)
     ridge = ridge * top_fade
     tip = 0.42 * _gauss(X, Y, 0.0, L.tip_y + 0.05, 0.72, 0.6)
@@ -222,7 +225,9 @@ def nose_height(X: np.ndarray, Y: np.ndarray, L: Layout) -> np.ndarray:
     for sx in (1.0, -1.0):
         cx = sx * (W - 0.6)
         alae = alae + 1.3 * _gauss(X, Y, cx, L.subnasale_y + 0.5, 0.62, 0.58)
-        alae = alae - 0.12 * np.exp(-((np.hypot((X - cx) / 0.85, (Y - L.subnasale_y - 0.5) / 0.8) - 1.0) / 0.14) ** 2)
+        alae = alae - 0.12 * np.exp(
+            -(((np.hypot((X - cx) / 0.85, (Y - L.subnasale_y - 0.5) / 0.8) - 1.0) / 0.14) ** 2)
+        )
     return np.maximum(ridge + tip, 0.0) + alae
 
 
@@ -239,17 +244,17 @@ def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) 
     ex, ey = L.eye_centre
     ax = np.abs(X)
     h = nose_height(X, Y, L)
-    h += 0.62 * params.brow_ridge * _gauss(ax, Y, ex + 0.1, ey + 1.85, 1.9, 0.62)        # brow ridge
-    h += 0.6 * params.brow_ridge * _gauss(X, Y, 0.0, ey + 1.55, 1.2, 0.8)              # glabella
-    h -= 1.35 * _gauss(ax, Y, ex - 0.25, ey + 0.05, 1.3, 1.0)                            # eye socket
-    h -= 0.35 * _gauss(ax, Y, ex - 1.6, ey + 0.2, 0.6, 0.7)                              # medial canthus hollow
-    h += 0.55 * params.cheekbones * _gauss(ax, Y, ex + 1.55, -2.4, 1.45, 1.0)           # cheekbones
-    h += 0.5 * _gauss(ax, Y, ex + 0.4, -3.6, 1.7, 1.4)                                   # malar fat
-    h += 0.35 * _gauss(ax, Y, 4.6, -6.2, 1.6, 1.7)                                     # buccal fullness
-    h -= 0.15 * _gauss(ax, Y, 6.2, 2.8, 1.0, 1.8)                                        # temples
-    h -= 0.1 * _gauss(ax, Y, 5.4, -5.4, 1.2, 1.3)                                       # under cheekbone
+    h += 0.62 * params.brow_ridge * _gauss(ax, Y, ex + 0.1, ey + 1.85, 1.9, 0.62)  # brow ridge
+    h += 0.6 * params.brow_ridge * _gauss(X, Y, 0.0, ey + 1.55, 1.2, 0.8)  # glabella
+    h -= 1.35 * _gauss(ax, Y, ex - 0.25, ey + 0.05, 1.3, 1.0)  # eye socket
+    h -= 0.35 * _gauss(ax, Y, ex - 1.6, ey + 0.2, 0.6, 0.7)  # medial canthus hollow
+    h += 0.55 * params.cheekbones * _gauss(ax, Y, ex + 1.55, -2.4, 1.45, 1.0)  # cheekbones
+    h += 0.5 * _gauss(ax, Y, ex + 0.4, -3.6, 1.7, 1.4)  # malar fat
+    h += 0.35 * _gauss(ax, Y, 4.6, -6.2, 1.6, 1.7)  # buccal fullness
+    h -= 0.15 * _gauss(ax, Y, 6.2, 2.8, 1.0, 1.8)  # temples
+    h -= 0.1 * _gauss(ax, Y, 5.4, -5.4, 1.2, 1.3)  # under cheekbone
     mx, my = L.mouth_centre
-    h += 0.95 * _gauss(X, Y, mx, my + 0.4, 2.7 * L.mouth_scale[0], 2.0)                  # muzzle
+    h += 0.95 * _gauss(X, Y, mx, my + 0.4, 2.7 * L.mouth_scale[0], 2.0)  # muzzle
     # nasolabial fold: groove along the line from the alar base to beside the mouth corner
     for sx in (1.0, -1.0):
         a = np.array([sx * (L.alar_half_width + 0.05), L.subnasale_y + 0.2])
@@ -261,9 +266,9 @@ def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) 
         fade = np.sin(np.pi * np.clip(tt * 0.9 + 0.1, 0, 1)) ** 0.5
         h -= 0.16 * fade * np.exp(-((dist / 0.28) ** 2))
         h += 0.18 * fade * np.exp(-(((dist - 0.6) / 0.5) ** 2)) * (side < 0)
-    h -= 0.10 * _gauss(ax, Y, 0.32, L.subnasale_y - 1.0, 0.12, 0.8)                     # philtrum groove
-    h -= 0.32 * _gauss(X, Y, 0.0, my - 1.85, 1.6, 0.42)                                  # mentolabial sulcus
-    h += 0.45 * _gauss(X, Y, 0.0, my - 3.0 - L.chin_shift, 1.5, 0.9)                     # chin boss
+    h -= 0.10 * _gauss(ax, Y, 0.32, L.subnasale_y - 1.0, 0.12, 0.8)  # philtrum groove
+    h -= 0.32 * _gauss(X, Y, 0.0, my - 1.85, 1.6, 0.42)  # mentolabial sulcus
+    h += 0.45 * _gauss(X, Y, 0.0, my - 3.0 - L.chin_shift, 1.5, 0.9)  # chin boss
     return h
 
 
@@ -278,17 +283,16 @@ def _blend_direction(d: np.ndarray) -> np.ndarray:
 class SkinGeometry:
     """Skin vertices and the feature anchors the parts and landmarks need (cm)."""
 
-    vertices: np.ndarray        # (n, 3)
-    chart: np.ndarray           # (n, 2) warped chart position of each vertex
-    eye_centre_L: np.ndarray    # (3,) eyeball centre; the right one is its mirror
+    vertices: np.ndarray  # (n, 3)
+    chart: np.ndarray  # (n, 2) warped chart position of each vertex
+    eye_centre_L: np.ndarray  # (3,) eyeball centre; the right one is its mirror
     eye_radius: float
-    mouth_anchor: np.ndarray    # (3,) point on the contact line at the midline
+    mouth_anchor: np.ndarray  # (3,) point on the contact line at the midline
 
 
 def skin_geometry(topo: HeadTopology, params: HeadParams) -> SkinGeometry:
     """Skin vertex positions (n, 3) in cm for a parameter set (before the head scale)."""
     L = Layout.of(params)
-    n = topo.n_vertices
     chart0 = direction_to_chart(topo.directions)
     front = topo.directions[:, 2] > 0.25
 
@@ -330,13 +334,13 @@ def skin_geometry(topo: HeadTopology, params: HeadParams) -> SkinGeometry:
             z_sph = c[2] + np.sqrt(np.clip(lid_r**2 - rho2, 0.0, None))
             w = 1.0 - smoothstep(0.35, 0.85, max(u, 0.0))
             z = np.maximum(p[:, 2], w * z_sph + (1 - w) * p[:, 2])
-            if u == ring_u[1]:      # a touch of margin thickness
+            if u == ring_u[1]:  # a touch of margin thickness
                 z = z + 0.02
             p[:, 2] = z
             d = p - c
             dist = np.linalg.norm(d, axis=1, keepdims=True)
             p = np.where(dist < R + 0.06, c + d / dist * (R + 0.06), p)
-            if u < 0:               # conjunctiva skirt: tuck inside the eyeball
+            if u < 0:  # conjunctiva skirt: tuck inside the eyeball
                 p = c + (p - c) / np.linalg.norm(p - c, axis=1, keepdims=True) * (R - 0.25)
             v[ids] = p
 

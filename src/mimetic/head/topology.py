@@ -24,19 +24,19 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import ConvexHull
 
-CHART_D = 10.0                     # gnomonic chart distance, cm
+CHART_D = 10.0  # gnomonic chart distance, cm
 EYE_CENTRE = np.array([3.15, 0.0])  # left eye (+X, the subject's left) in the canonical chart
-EYE_OUTER = (2.75, 2.25)           # semi-axes of the outermost eye ring
+EYE_OUTER = (2.75, 2.25)  # semi-axes of the outermost eye ring
 MOUTH_CENTRE = np.array([0.0, -7.3])
-MOUTH_OUTER = (4.4, 2.35, 3.15)    # semi-axes: half-width, up, down
+MOUTH_OUTER = (4.4, 2.35, 3.15)  # semi-axes: half-width, up, down
 
 
 @dataclass(frozen=True, eq=False)
 class RingSet:
     """Concentric rings around one feature: ``index[k, j]`` is the vertex of ring k at angle j."""
 
-    index: np.ndarray   # (rings, per_ring) int64
-    u: np.ndarray       # (rings,) float64, ring parameter (0 = lid margin / lip contact, 1 = outermost)
+    index: np.ndarray  # (rings, per_ring) int64
+    u: np.ndarray  # (rings,) float64, ring parameter (0 = lid margin / lip contact, 1 = outermost)
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,11 +101,13 @@ def mouth_ring_params(resolution: int) -> tuple[int, np.ndarray]:
     per_ring = max(24, 4 * round(16 * s))
     vermilion = max(2, round(3 * s**0.6))
     skin = max(3, round(6 * s**0.6))
-    u = np.concatenate([
-        [-1.0, 0.0],
-        np.linspace(0.0, 1.0, vermilion + 1)[1:],
-        1.0 + np.linspace(0.0, 1.0, skin + 1)[1:] ** 1.15,
-    ])
+    u = np.concatenate(
+        [
+            [-1.0, 0.0],
+            np.linspace(0.0, 1.0, vermilion + 1)[1:],
+            1.0 + np.linspace(0.0, 1.0, skin + 1)[1:] ** 1.15,
+        ]
+    )
     return per_ring, u
 
 
@@ -171,11 +173,12 @@ def build_topology(resolution: int = 10_000) -> HeadTopology:
     mouth_outer[np.isclose(mouth_outer[:, 0], 0, atol=1e-9), 0] = 0.0
 
     # --- fill points on the x >= 0 half sphere ------------------------------------------------
-    n_fib = int(round(9_000 * s**2))
+    n_fib = round(9_000 * s**2)
     spacing = np.sqrt(4 * np.pi / n_fib)
     pts = _fibonacci(n_fib)
     pts = pts[pts[:, 0] > 0.5 * spacing]
-    angles = np.arange(int(np.ceil(np.pi / spacing)) * 2) * (2 * np.pi / (int(np.ceil(np.pi / spacing)) * 2))
+    n_meridian = 2 * int(np.ceil(np.pi / spacing))
+    angles = np.arange(n_meridian) * (2 * np.pi / n_meridian)
     meridian = np.column_stack([np.zeros_like(angles), np.cos(angles), np.sin(angles)])
     pts = _density_warp(pts)
     meridian = _density_warp(meridian)
@@ -192,7 +195,7 @@ def build_topology(resolution: int = 10_000) -> HeadTopology:
         rho_mouth = np.hypot(m[:, 0] / MOUTH_OUTER[0], m[:, 1] / mb)
         return ~front | ((rho_eye > 1 + margin) & (rho_mouth > 1 + margin))
 
-    gap = 0.55 * 0.4 / s   # keep fill points about half a spacing outside the outer rings
+    gap = 0.55 * 0.4 / s  # keep fill points about half a spacing outside the outer rings
     pts = pts[outside_features(pts, gap / 2.5)]
     meridian = meridian[outside_features(meridian, gap / 2.5)]
 
@@ -212,9 +215,9 @@ def build_topology(resolution: int = 10_000) -> HeadTopology:
 
     # --- triangulate the x >= 0 half: hull of directions, then drop hole and cut facets --------
     mouth_half_j = np.nonzero(mouth_outer[:, 0] >= 0)[0]
-    half_dirs = np.concatenate([
-        meridian, pts, chart_to_direction(eye_outer), chart_to_direction(mouth_outer[mouth_half_j])
-    ])
+    half_dirs = np.concatenate(
+        [meridian, pts, chart_to_direction(eye_outer), chart_to_direction(mouth_outer[mouth_half_j])]
+    )
     half_ids = np.concatenate([mer_index, pos_index, eye_l_index[-1], mouth_index[-1][mouth_half_j]])
     hull = ConvexHull(half_dirs)
     simp = hull.simplices
@@ -225,7 +228,9 @@ def build_topology(resolution: int = 10_000) -> HeadTopology:
     in_mouth[n_mer + n_half + m_eye :] = True
     drop = on_cut[simp].all(1) | in_eye[simp].all(1) | in_mouth[simp].all(1)
     simp = simp[~drop]
-    normal = np.cross(half_dirs[simp[:, 1]] - half_dirs[simp[:, 0]], half_dirs[simp[:, 2]] - half_dirs[simp[:, 0]])
+    normal = np.cross(
+        half_dirs[simp[:, 1]] - half_dirs[simp[:, 0]], half_dirs[simp[:, 2]] - half_dirs[simp[:, 0]]
+    )
     flip = np.einsum("ij,ij->i", normal, half_dirs[simp].sum(1)) < 0
     simp[flip] = simp[flip][:, ::-1]
     half_faces = half_ids[simp]
@@ -242,11 +247,13 @@ def build_topology(resolution: int = 10_000) -> HeadTopology:
 
     mirrored_faces = mirror[half_faces][:, ::-1]
     fill_faces = np.concatenate([half_faces, mirrored_faces])
-    ring_faces = np.concatenate([
-        _ring_quads(mouth_index, flip=False),
-        _ring_quads(eye_l_index, flip=False),
-        _ring_quads(eye_r_index, flip=True),
-    ])
+    ring_faces = np.concatenate(
+        [
+            _ring_quads(mouth_index, flip=False),
+            _ring_quads(eye_l_index, flip=False),
+            _ring_quads(eye_r_index, flip=True),
+        ]
+    )
     faces = np.concatenate([ring_faces, fill_faces]).astype(np.int64)
 
     # --- canonical directions (ring shapes are placed later; here the outer rings and fill) -------

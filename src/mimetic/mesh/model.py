@@ -157,5 +157,5 @@ def surface_positions(points: list[SurfacePoint], vertices: np.ndarray, faces: n
     if not points:
         return np.zeros((0, 3))
     face_ids = np.array([p.face for p in points])
-    bary = np.array([p.bary for p in points])                       # (k, 3)
+    bary = np.array([p.bary for p in points])  # (k, 3)
     return np.einsum("kj,kjd->kd", bary, vertices[faces[face_ids]])  # (k, 3)

@@ -23,7 +23,16 @@ from mimetic.head.topology import build_topology
 from mimetic.mesh.model import SurfacePoint
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
 
-BONES = ("head", "jaw", "eyelid_upper_L", "eyelid_upper_R", "eyelid_lower_L", "eyelid_lower_R", "eye_L", "eye_R")
+BONES = (
+    "head",
+    "jaw",
+    "eyelid_upper_L",
+    "eyelid_upper_R",
+    "eyelid_lower_L",
+    "eyelid_lower_R",
+    "eye_L",
+    "eye_R",
+)
 
 # (name, kind, origin, insertion, width_rel, falloff_start_rel, falloff_end_rel, angle_deg, region)
 # origin / insertion: a landmark name or a canonical chart point (X, Y) on the left side;
@@ -58,30 +67,79 @@ _SPHINCTERS = [
 ]
 # wires of the thesis (Table 4.1): name -> (points, driving muscles (same side), dropoff_rel, regions)
 _WIRES_L = {
-    "forehead": ([(0.6, 4.8), (2.2, 5.0), (3.8, 4.7), (5.2, 4.0)],
-                 ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"], 0.09, ["forehead", "brow"]),
-    "eyebrow": (["brow_inner", "brow_inner_mid", "brow_mid", "brow_outer_mid", "brow_outer"],
-                ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"], 0.06, ["brow", "forehead"]),
-    "nose": ([(0.9, -0.2), (1.3, -2.0), "alare"], ["orbicularis_oculi_inner", "levator_labii_nasal"], 0.05,
-             ["nose", "cheek"]),
-    "cheek": ([(1.9, -1.6), (3.2, -2.2), (4.6, -2.0), (5.6, -1.0)], ["orbicularis_oculi_outer"], 0.06,
-              ["cheek", "eyelid_lower"]),
-    "nasolabial": (["alar_base", (2.5, -5.6), (3.3, -7.4)], ["levator_labii_nasal", "levator_labii_mid", "zygomatic_minor"],
-                   0.05, ["nasolabial", "cheek"]),
-    "mouth_upper_corner": (["upper_lip_peak", "upper_lip_outer", "mouth_corner"],
-                           ["levator_labii_nasal", "levator_labii_mid", "zygomatic_minor", "zygomatic_major", "risorius",
-                            "buccinator", "triangularis", "orbicularis_oris_incisivis"], 0.045, ["upper_lip"]),
-    "mouth_lower_corner": (["lower_lip_mid", "lower_lip_outer", "mouth_corner"],
-                           ["zygomatic_major", "risorius", "buccinator", "triangularis", "orbicularis_oris_incisivis",
-                            "depressor_labii", "platysma"], 0.045, ["lower_lip", "chin"]),
+    "forehead": (
+        [(0.6, 4.8), (2.2, 5.0), (3.8, 4.7), (5.2, 4.0)],
+        ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"],
+        0.09,
+        ["forehead", "brow"],
+    ),
+    "eyebrow": (
+        ["brow_inner", "brow_inner_mid", "brow_mid", "brow_outer_mid", "brow_outer"],
+        ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"],
+        0.06,
+        ["brow", "forehead"],
+    ),
+    "nose": (
+        [(0.9, -0.2), (1.3, -2.0), "alare"],
+        ["orbicularis_oculi_inner", "levator_labii_nasal"],
+        0.05,
+        ["nose", "cheek"],
+    ),
+    "cheek": (
+        [(1.9, -1.6), (3.2, -2.2), (4.6, -2.0), (5.6, -1.0)],
+        ["orbicularis_oculi_outer"],
+        0.06,
+        ["cheek", "eyelid_lower"],
+    ),
+    "nasolabial": (
+        ["alar_base", (2.5, -5.6), (3.3, -7.4)],
+        ["levator_labii_nasal", "levator_labii_mid", "zygomatic_minor"],
+        0.05,
+        ["nasolabial", "cheek"],
+    ),
+    "mouth_upper_corner": (
+        ["upper_lip_peak", "upper_lip_outer", "mouth_corner"],
+        [
+            "levator_labii_nasal",
+            "levator_labii_mid",
+            "zygomatic_minor",
+            "zygomatic_major",
+            "risorius",
+            "buccinator",
+            "triangularis",
+            "orbicularis_oris_incisivis",
+        ],
+        0.045,
+        ["upper_lip"],
+    ),
+    "mouth_lower_corner": (
+        ["lower_lip_mid", "lower_lip_outer", "mouth_corner"],
+        [
+            "zygomatic_major",
+            "risorius",
+            "buccinator",
+            "triangularis",
+            "orbicularis_oris_incisivis",
+            "depressor_labii",
+            "platysma",
+        ],
+        0.045,
+        ["lower_lip", "chin"],
+    ),
 }
 _WIRES_C = {
-    "mouth_upper_center": (["upper_lip_peak_R", "upper_lip_top", "upper_lip_peak_L"],
-                           ["levator_labii_nasal", "levator_labii_mid", "zygomatic_major", "orbicularis_oris_incisivis"],
-                           0.045, ["upper_lip"]),
-    "mouth_lower_center": (["lower_lip_mid_R", "lower_lip_bottom", "lower_lip_mid_L"],
-                           ["zygomatic_major", "risorius", "triangularis", "depressor_labii", "orbicularis_oris_incisivis"],
-                           0.045, ["lower_lip", "chin"]),
+    "mouth_upper_center": (
+        ["upper_lip_peak_R", "upper_lip_top", "upper_lip_peak_L"],
+        ["levator_labii_nasal", "levator_labii_mid", "zygomatic_major", "orbicularis_oris_incisivis"],
+        0.045,
+        ["upper_lip"],
+    ),
+    "mouth_lower_center": (
+        ["lower_lip_mid_R", "lower_lip_bottom", "lower_lip_mid_L"],
+        ["zygomatic_major", "risorius", "triangularis", "depressor_labii", "orbicularis_oris_incisivis"],
+        0.045,
+        ["lower_lip", "chin"],
+    ),
 }
 
 
@@ -141,24 +199,52 @@ def _muscles(head: Head, places: _Places) -> list[Muscle]:
     for side in ("L", "R"):
         for name, kind, origin, insertion, width, fs, fe, angle, region in _MUSCLES_L:
             reg = region if region in head.regions else f"{region}_{side}"
-            muscles.append(Muscle(
-                name=f"{name}_{side}", kind=kind, side=side,
-                origin=places.point(origin, side), insertion=places.point(insertion, side),
-                width_rel=width, falloff_start_rel=fs, falloff_end_rel=fe, angle_rad=float(np.radians(angle)),
-                region=reg if reg in head.regions else None,
-            ))
+            muscles.append(
+                Muscle(
+                    name=f"{name}_{side}",
+                    kind=kind,
+                    side=side,
+                    origin=places.point(origin, side),
+                    insertion=places.point(insertion, side),
+                    width_rel=width,
+                    falloff_start_rel=fs,
+                    falloff_end_rel=fe,
+                    angle_rad=float(np.radians(angle)),
+                    region=reg if reg in head.regions else None,
+                )
+            )
     for name, kind, origin, insertion, width, fs, fe, angle, region, reversed_ in _MUSCLES_C:
-        muscles.append(Muscle(
-            name=name, kind=kind, side="C", origin=places.point(origin, "C"), insertion=places.point(insertion, "C"),
-            width_rel=width, falloff_start_rel=fs, falloff_end_rel=fe, angle_rad=float(np.radians(angle)),
-            reversed=reversed_, region=region,
-        ))
+        muscles.append(
+            Muscle(
+                name=name,
+                kind=kind,
+                side="C",
+                origin=places.point(origin, "C"),
+                insertion=places.point(insertion, "C"),
+                width_rel=width,
+                falloff_start_rel=fs,
+                falloff_end_rel=fe,
+                angle_rad=float(np.radians(angle)),
+                reversed=reversed_,
+                region=region,
+            )
+        )
     for name, side, centre, end, minor, region in _SPHINCTERS:
-        muscles.append(Muscle(
-            name=name, kind="sphincter", side=side, origin=places.point(centre, side),
-            insertion=places.point(end, side), width_rel=minor, falloff_start_rel=0.6, falloff_end_rel=1.5,
-            angle_rad=float(np.pi), origin_inset_rel=0.0, region=region,
-        ))
+        muscles.append(
+            Muscle(
+                name=name,
+                kind="sphincter",
+                side=side,
+                origin=places.point(centre, side),
+                insertion=places.point(end, side),
+                width_rel=minor,
+                falloff_start_rel=0.6,
+                falloff_end_rel=1.5,
+                angle_rad=float(np.pi),
+                origin_inset_rel=0.0,
+                region=region,
+            )
+        )
     return muscles
 
 
@@ -181,12 +267,19 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle]) -> list[Wire
                 length = np.linalg.norm(ins - m.origin.position(v, head.mesh.faces))
                 dist = np.linalg.norm(pos - ins, axis=1)
                 weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.5 * length)) ** 2)), 6)
-        wires.append(Wire(
-            name=name, side=side, points=tuple(pts), dropoff_rel=dropoff,
-            vertices=_region(head, regions, side) if side != "C" else np.union1d(
-                _region(head, regions, "L"), _region(head, regions, "R")),
-            muscle_weights=weights, rest_weight=np.ones(len(pts)),
-        ))
+        wires.append(
+            Wire(
+                name=name,
+                side=side,
+                points=tuple(pts),
+                dropoff_rel=dropoff,
+                vertices=_region(head, regions, side)
+                if side != "C"
+                else np.union1d(_region(head, regions, "L"), _region(head, regions, "R")),
+                muscle_weights=weights,
+                rest_weight=np.ones(len(pts)),
+            )
+        )
     return wires
 
 
@@ -194,7 +287,7 @@ def _bones(head: Head) -> tuple[list[Bone], np.ndarray]:
     lm = head.landmark_positions
     tragion = lm(["tragion_L"])[0]
     pogonion = lm(["pogonion"])[0]
-    pivot = np.array([0.0, tragion[1] - 0.8, tragion[2] + 1.0])     # in line with the lower ear
+    pivot = np.array([0.0, tragion[1] - 0.8, tragion[2] + 1.0])  # in line with the lower ear
     neck_base = np.array([0.0, head.vertices[: head.n_skin, 1].min() + 2.0, tragion[2] - 1.0])
     bones = [
         Bone("head", None, neck_base, np.array([0.0, tragion[1], tragion[2] - 1.0])),
@@ -226,16 +319,22 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     stomion = head.landmark_positions(["upper_lip_inner"])[0]
     # jaw: below the plane through the lip contact line and the jaw pivot, tapered over ~1.5 cm
     a = np.array([0.0, stomion[1] - jaw_pivot[1], stomion[2] - jaw_pivot[2]])
-    normal = np.array([0.0, a[2], -a[1]]) / np.linalg.norm(a)          # points up-forward
+    normal = np.array([0.0, a[2], -a[1]]) / np.linalg.norm(a)  # points up-forward
     if normal[1] < 0:
         normal = -normal
     height = (v - stomion) @ normal
     jaw = _smoothstep(0.3, -1.3, height)
-    jaw *= _smoothstep(-17.0, -12.5, v[:, 1])                            # the neck stays with the head
+    jaw *= _smoothstep(-17.0, -12.5, v[:, 1])  # the neck stays with the head
     jaw[head.regions["lower_lip"]] = 1.0
     jaw[head.regions["upper_lip"]] = 0.0
     parts = head.mesh.parts
-    for part, value in (("teeth_lower", 1.0), ("tongue", 1.0), ("teeth_upper", 0.0), ("ear_L", 0.0), ("ear_R", 0.0)):
+    for part, value in (
+        ("teeth_lower", 1.0),
+        ("tongue", 1.0),
+        ("teeth_upper", 0.0),
+        ("ear_L", 0.0),
+        ("ear_R", 0.0),
+    ):
         jaw[np.unique(head.mesh.faces[parts[part]])] = value
     W[:, BONES.index("jaw")] = jaw
     # eyelids: the margin follows the lid bone fully, fading out by u = 0.45
@@ -301,6 +400,9 @@ def build_rig(head: Head) -> Rig:
         bones=tuple(bones),
         skin_weights=_skin_weights(head, pivot),
         channels=tuple(_channels(muscles)),
-        metadata={"generator": "mimetic.head", "resolution": head.resolution, "params": head.params.as_dict()},
+        metadata={
+            "generator": "mimetic.head",
+            "resolution": head.resolution,
+            "params": head.params.as_dict(),
+        },
     )
-

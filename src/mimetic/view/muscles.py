@@ -30,7 +30,7 @@ def muscle_segments(rig: Rig, *, ring_segments: int = 24) -> tuple[np.ndarray, n
             minor = np.cross(np.array([0.0, 0.0, 1.0]), major)
             minor *= m.width_rel * rig.scale / max(np.linalg.norm(minor), 1e-12)
             t = np.linspace(0, 2 * np.pi, ring_segments + 1)
-            ring = centre + np.cos(t)[:, None] * major + np.sin(t)[:, None] * minor      # (s+1, 3)
+            ring = centre + np.cos(t)[:, None] * major + np.sin(t)[:, None] * minor  # (s+1, 3)
             segments.extend(np.stack([ring[:-1], ring[1:]], axis=1))
             colors.extend([color] * ring_segments)
             ring_flags.extend([True] * ring_segments)
@@ -38,8 +38,11 @@ def muscle_segments(rig: Rig, *, ring_segments: int = 24) -> tuple[np.ndarray, n
             segments.append(np.stack([rig.muscle_attachment(m.name), insertion]))
             colors.append(color)
             ring_flags.append(False)
-    return (np.asarray(segments).reshape(-1, 2, 3), np.asarray(colors, dtype=np.float64).reshape(-1, 3),
-            np.asarray(ring_flags, dtype=bool))
+    return (
+        np.asarray(segments).reshape(-1, 2, 3),
+        np.asarray(colors, dtype=np.float64).reshape(-1, 3),
+        np.asarray(ring_flags, dtype=bool),
+    )
 
 
 def render_rig(
