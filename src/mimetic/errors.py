@@ -29,5 +29,9 @@ class RenderError(MimeticError, RuntimeError):
     """Offscreen rendering is unavailable (e.g. a missing system library)."""
 
 
+class MissingExtraError(MimeticError, ImportError):
+    """An optional dependency is not installed; the message names the extra to install."""
+
+
 class MimeticWarning(UserWarning):
     """Input that is suspect but usable, or a solver that did not converge."""

@@ -15,6 +15,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import warnings
 
 import numpy as np
 import pytest
@@ -191,6 +192,31 @@ def test_detect_face_is_deterministic_and_accepts_non_contiguous_images(views):
     second = detect_face(flipped_twice)
     assert second.score == first.score
     np.testing.assert_array_equal(second.landmarks, first.landmarks)
+
+
+def test_detect_face_emits_no_warnings(views):
+    image = views(None, 0.0).image
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        detect_face(image)
+    assert [str(w.message) for w in caught] == []
+
+
+def test_detect_face_leaves_stderr_quiet(mediapipe_ready):
+    """mediapipe's C++ start-up logging (absl, TF Lite) is filtered; other stderr output gets through."""
+    script = textwrap.dedent(
+        """
+        import os
+        import numpy as np
+        from mimetic.fit.detect import detect_face
+        os.write(2, b"before\\n")
+        detect_face(np.zeros((64, 64, 3), np.uint8))
+        os.write(2, b"after\\n")
+        """
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == "before\nafter\n"
 
 
 def test_detect_face_below_min_score_returns_not_found_with_the_score(views):

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimetic.errors import LandmarkError, MimeticError
+from mimetic.errors import LandmarkError, MissingExtraError
 from mimetic.head.landmarks import MEDIAPIPE as MEDIAPIPE_POINTS
 
 log = logging.getLogger(__name__)
@@ -49,10 +49,6 @@ _NOISE = re.compile(
     r"|[IW]\d{4} [\d:. ]+\d+ \w+\.cc:\d+\])"
 )
 _PROTOBUF_WARNING = r"SymbolDatabase\.GetPrototype\(\) is deprecated"
-
-
-class MissingExtraError(MimeticError, ImportError):
-    """An optional dependency is not installed; the message names the extra to install."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,16 +97,22 @@ class _StderrFilter:
     """
 
     def __enter__(self) -> _StderrFilter:
+        self._file = self._saved = None
         try:
             sys.stderr.flush()
-        except (AttributeError, OSError, ValueError):
+        except (AttributeError, OSError, ValueError):  # no usable sys.stderr
             pass
+        try:
+            self._saved = os.dup(2)
+        except OSError:  # no descriptor 2 (e.g. a daemon): nothing to protect
+            return self
         self._file = tempfile.TemporaryFile()
-        self._saved = os.dup(2)
         os.dup2(self._file.fileno(), 2)
         return self
 
     def __exit__(self, *exc_info) -> None:
+        if self._file is None:
+            return
         os.dup2(self._saved, 2)
         os.close(self._saved)
         self._file.seek(0)

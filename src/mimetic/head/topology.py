@@ -158,7 +158,7 @@ def _ring_quads(index: np.ndarray, flip: bool) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def build_topology(resolution: int = 10_000) -> HeadTopology:
-    """The skin topology for about ``resolution`` skin vertices (2,000 to 200,000)."""
+    """The skin topology for about ``resolution`` skin vertices (1,500 to 250,000)."""
     if not 1_500 <= resolution <= 250_000:
         raise ValueError(f"resolution={resolution} is outside the supported 1,500..250,000 skin vertices")
     s = np.sqrt(resolution / 10_000)
@@ -195,9 +195,9 @@ def build_topology(resolution: int = 10_000) -> HeadTopology:
         rho_mouth = np.hypot(m[:, 0] / MOUTH_OUTER[0], m[:, 1] / mb)
         return ~front | ((rho_eye > 1 + margin) & (rho_mouth > 1 + margin))
 
-    gap = 0.55 * 0.4 / s  # keep fill points about half a spacing outside the outer rings
-    pts = pts[outside_features(pts, gap / 2.5)]
-    meridian = meridian[outside_features(meridian, gap / 2.5)]
+    margin = 0.09 / s  # keep fill points clear of the outer rings (elliptical radius > 1 + margin)
+    pts = pts[outside_features(pts, margin)]
+    meridian = meridian[outside_features(meridian, margin)]
 
     # --- vertex numbering ------------------------------------------------------------------------
     # mouth rings, left-eye rings, right-eye rings, meridian fill, x > 0 fill, x < 0 fill
