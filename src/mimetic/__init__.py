@@ -5,6 +5,7 @@ Lengths keep the source mesh's units; the rig records them.
 """
 
 from mimetic.errors import (
+    ActivationError,
     LandmarkError,
     MeshError,
     MimeticError,
@@ -18,6 +19,7 @@ from mimetic.errors import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "ActivationError",
     "LandmarkError",
     "MeshError",
     "MimeticError",

@@ -25,6 +25,10 @@ class RigFormatError(MimeticError, ValueError):
     """A ``.mrig`` file that is corrupt, truncated, or written by a newer format version."""
 
 
+class ActivationError(MimeticError, ValueError):
+    """Activations for unknown channels, of the wrong shape, or outside a channel's range."""
+
+
 class RenderError(MimeticError, RuntimeError):
     """Offscreen rendering is unavailable (e.g. a missing system library)."""
 

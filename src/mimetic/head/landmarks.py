@@ -181,7 +181,8 @@ def skin_landmarks(topo: HeadTopology, mesh: Mesh, pieces: Mapping[str, Mesh]) -
     out["nose_tip"] = tip
     out["nose_bridge_upper"] = nearest(meridian, np.array([0.0, 0.9 + (chart[tip, 1] - 0.9) / 3]), chart)
     out["nose_bridge_lower"] = nearest(meridian, np.array([0.0, 0.9 + 2 * (chart[tip, 1] - 0.9) / 3]), chart)
-    out["subnasale"] = nearest(meridian, np.array([0.0, -4.95]), chart)
+    top_of_mouth = topo.mouth.index[-1][topo.mouth.index.shape[1] // 4]  # the outer mouth ring's top
+    out["subnasale"] = nearest(np.append(meridian, top_of_mouth), np.array([0.0, -4.95]), chart)
     both_sides("nostril", nearest(front, np.array([0.6, -4.6]), chart))
     both_sides("alar_base", nearest(front, np.array([1.25, -4.75]), chart))
     both_sides("alare", nearest(front, np.array([1.85, -4.3]), chart))
@@ -193,7 +194,7 @@ def skin_landmarks(topo: HeadTopology, mesh: Mesh, pieces: Mapping[str, Mesh]) -
     out["menton"] = int(chin[np.argmax(normals[chin] @ want)])
 
     # jaw contour (iBUG 0..16): outermost skin point in the frontal view along rays from a centre
-    skin_front = np.nonzero((v[:, 2] > -1.0) & (v[:, 1] < 0.0))[0]
+    skin_front = np.nonzero((v[:, 2] > -1.0) & (v[:, 1] < 0.0) & (v[:, 1] >= v[out["menton"], 1]))[0]
     centre = np.array([0.0, -2.0])
     rel = v[skin_front, :2] - centre
     ang = np.arctan2(rel[:, 1], rel[:, 0])  # -pi/2 = straight down

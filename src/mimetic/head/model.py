@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 
@@ -38,7 +39,8 @@ class Head:
     landmarks : Mapping[str, int]
         Landmark name -> vertex index (see ``landmarks.py``).
     regions : Mapping[str, (k,) int64]
-        Region name -> sorted skin vertex indices (see ``regions.py``).
+        Region name -> sorted vertex indices (see ``regions.py``); the lips also hold the first
+        two loops of the mouth cavity, whose rim continues the inner lip.
     eye_centres : (2, 3) float64
         Eyeball centres, left (+X) then right, cm.
     eye_radius : float
@@ -83,7 +85,6 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
     resolution correspond vertex by vertex. The result is exactly mirror-symmetric.
     """
     from mimetic.head.landmarks import skin_landmarks
-    from mimetic.head.regions import skin_regions
 
     params = params or HeadParams()
     topo = build_topology(resolution)
@@ -115,22 +116,49 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
         )
     mesh = Mesh.concatenate(pieces, units="cm")
     mirror = _mirror_map(mesh, topo, pieces)
-    v = mesh.vertices
-    v = 0.5 * (v + v[mirror] * np.array([-1.0, 1.0, 1.0]))  # exact symmetry
-    v = v * np.array([params.head_width, params.head_height, params.head_depth])
+    rest = mesh.vertices
+    rest = 0.5 * (rest + rest[mirror] * np.array([-1.0, 1.0, 1.0]))  # exact symmetry
+    scale = np.array([params.head_width, params.head_height, params.head_depth])
+    v = rest * scale
+    # eyeballs stay spheres: scaled about their centres by the smallest factor, which keeps the
+    # (anisotropically scaled) lids outside them
+    centres = np.stack([eye_l, eye_r])
+    for centre, part in zip(centres, ("eye_L", "eye_R"), strict=True):
+        ids = mesh.part_vertices(part)
+        v[ids] = centre * scale + (rest[ids] - centre) * scale.min()
     mesh = mesh.with_vertices(v)
+    mirror.setflags(write=False)
+    eye_centres = centres * scale
+    eye_centres.setflags(write=False)
     return Head(
         mesh=mesh,
         params=params,
         resolution=resolution,
         n_skin=topo.n_vertices,
         mirror=mirror,
-        landmarks=skin_landmarks(topo, mesh, pieces),
-        regions=skin_regions(topo),
-        eye_centres=np.stack([eye_l, eye_r])
-        * np.array([params.head_width, params.head_height, params.head_depth]),
-        eye_radius=geo.eye_radius,
+        landmarks=MappingProxyType(skin_landmarks(topo, mesh, pieces)),
+        regions=MappingProxyType(_regions(topo, mesh)),
+        eye_centres=eye_centres,
+        eye_radius=geo.eye_radius * float(scale.min()),
     )
+
+
+def _regions(topo: HeadTopology, mesh: Mesh) -> dict[str, np.ndarray]:
+    """The skin regions, with the first two loops of the mouth cavity added to the lips.
+
+    The cavity's rim coincides with the inner lip, so whatever moves a lip moves its rim too.
+    """
+    from mimetic.head.regions import skin_regions
+
+    regions = skin_regions(topo)
+    per_ring = topo.mouth.index.shape[1]
+    bag = mesh.part_vertices("mouth")[: 2 * per_ring].reshape(2, per_ring)  # rim loop, next loop
+    t = topo.ring_uv[topo.mouth.index[0], 1]
+    for name, half in (("upper_lip", np.sin(t) > 1e-9), ("lower_lip", np.sin(t) < -1e-9)):
+        ids = np.union1d(regions[name], bag[:, half].ravel())
+        ids.setflags(write=False)
+        regions[name] = ids
+    return regions
 
 
 def _tragus(skin: np.ndarray, params: HeadParams) -> np.ndarray:

@@ -21,9 +21,9 @@ PARAM_RANGES: dict[str, tuple[float, float, str]] = {
     "head_depth": (0.92, 1.08, "front-to-back depth, nose excluded (0.89 of head height)"),
     "jaw_width": (0.85, 1.15, "bigonial width at the jaw angles (0.49 of head height)"),
     "chin_height": (0.80, 1.20, "stomion-to-menton height (0.18 of head height)"),
-    "nose_length": (0.85, 1.15, "nasion-to-subnasale length (0.235 of head height)"),
+    "nose_length": (0.90, 1.10, "nasion-to-subnasale length (0.235 of head height)"),
     "nose_width": (0.80, 1.25, "alar width (0.15 of head height)"),
-    "nose_projection": (0.80, 1.20, "nose tip in front of the nasion (0.10 of head height)"),
+    "nose_projection": (0.85, 1.15, "nose tip in front of the nasion (0.10 of head height)"),
     "upper_lip": (0.70, 1.30, "upper vermilion height (0.022 of head height)"),
     "lower_lip": (0.70, 1.30, "lower vermilion height (0.026 of head height)"),
     "mouth_width": (0.85, 1.15, "corner-to-corner mouth width (0.20 of head height)"),
@@ -69,7 +69,7 @@ class HeadParams:
     def random(seed: int | None = None, *, spread: float = 1.0) -> HeadParams:
         """Varied, plausible parameters: each factor drawn from a clipped normal around its default.
 
-        ``spread`` scales the standard deviation (1.0: a third of the half-range), so about one
+        ``spread`` scales the standard deviation (1.0: half of the half-range), so about one
         face in ten has some parameter near the end of its range.
         """
         rng = np.random.default_rng(seed)
@@ -77,7 +77,7 @@ class HeadParams:
         for name, (lo, hi, _) in PARAM_RANGES.items():
             default = getattr(HeadParams, name)
             half = min(default - lo, hi - default)
-            values[name] = float(np.clip(default + rng.normal(0.0, spread * half / 1.6), lo, hi))
+            values[name] = float(np.clip(default + rng.normal(0.0, spread * half / 2.0), lo, hi))
         return HeadParams(**values)
 
     def with_values(self, **values: float) -> HeadParams:

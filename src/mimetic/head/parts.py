@@ -116,7 +116,7 @@ def teeth(front: np.ndarray, upper: bool, s: float) -> Mesh:
     """A dental arch whose front incisal edge is at ``front`` (3,); a closed swept box."""
     n = max(24, 2 * round(24 * s))
     pts, nrm = _arch(2.15 if upper else 1.95, 2.8, s, n)
-    thick, height = 0.65, 1.1
+    thick, height = 0.65, 0.95
     a = np.linspace(-1, 1, n)
     tooth = 0.04 * np.abs(np.sin(a * np.pi * 8)) ** 0.3  # separations between teeth
     sign = 1.0 if upper else -1.0

@@ -72,7 +72,7 @@ def skin_regions(topo: HeadTopology) -> dict[str, np.ndarray]:
     masks["nose"] = nose
     # nasolabial band: within 0.8 of the fold line from the alar base to beside the mouth corner
     a = np.array([L.alar_half_width + 0.05, L.subnasale_y + 0.2])
-    b = np.array([2.5 * L.mouth_scale[0] + 0.75, L.mouth_centre[1] - 1.4])
+    b = np.array([2.5 * L.mouth_scale[0] + 1.3, L.mouth_centre[1] - 1.4])
     d = b - a
     p = np.column_stack([np.abs(X), Y])
     s = np.clip((p - a) @ d / (d @ d), 0, 1)

@@ -38,6 +38,7 @@ EYE_RADIUS = 1.2  # eyeball radius, cm (scaled by eye_size)
 LID_GAP = 0.08  # lid thickness over the eyeball at the margin, cm
 NASION_Y = 0.9  # chart Y of the nasion
 SUBNASALE_DROP = 5.8  # nasion-to-subnasale chart length at nose_length = 1
+SUBNASALE_Y0 = NASION_Y - SUBNASALE_DROP  # canonical chart Y of the subnasale
 
 
 def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
@@ -73,7 +74,7 @@ class Layout:
             mouth_centre=np.array([0.0, mouth_y]),
             mouth_scale=np.array([p.mouth_width, 1.0]),
             subnasale_y=subnasale,
-            tip_y=subnasale + 1.05,
+            tip_y=subnasale + 1.05 * p.nose_length,
             nose_projection=2.5 * p.nose_projection,
             alar_half_width=1.75 * p.nose_width,
             chin_shift=2.6 * (p.chin_height - 1.0),
@@ -98,9 +99,18 @@ def warp_chart(chart: np.ndarray, layout: Layout) -> np.ndarray:
     rel = X - m0
     mb = np.where(rel[:, 1] >= 0, MOUTH_OUTER[1], MOUTH_OUTER[2])
     rho = np.hypot(rel[:, 0] / MOUTH_OUTER[0], rel[:, 1] / mb)
-    w = 1.0 - smoothstep(1.0, 2.0, rho)
+    w_mouth = 1.0 - smoothstep(1.0, 2.0, rho)
     target = layout.mouth_centre + rel * layout.mouth_scale
-    out += w[:, None] * (target - X)
+    out += w_mouth[:, None] * (target - X)
+    # nose: stretch the midline band between the nasion and the subnasale vertically; it hands
+    # over to the mouth's translation below, so the two never add up
+    stretch = (layout.subnasale_y - NASION_Y) / (SUBNASALE_Y0 - NASION_Y)
+    shift = (stretch - 1.0) * (np.clip(X[:, 1], SUBNASALE_Y0, NASION_Y) - NASION_Y)
+    band = (1.0 - smoothstep(0.9, 2.2, np.abs(X[:, 0]))) * (
+        1.0 - smoothstep(NASION_Y, NASION_Y + 1.2, X[:, 1])
+    )
+    band *= smoothstep(SUBNASALE_Y0 - 3.0, SUBNASALE_Y0 - 1.0, X[:, 1])
+    out[:, 1] += band * (1.0 - w_mouth) * shift
     return out
 
 
@@ -207,7 +217,8 @@ def base_radius(directions: np.ndarray, params: HeadParams, layout: Layout) -> n
 
 def nose_height(X: np.ndarray, Y: np.ndarray, L: Layout) -> np.ndarray:
     """Height (k,) of the nose above the base surface at chart points."""
-    P, W = 0.85 * L.nose_projection, L.alar_half_width
+    P, W = 0.95 * L.nose_projection, L.alar_half_width
+    length = (L.subnasale_y - NASION_Y) / (SUBNASALE_Y0 - NASION_Y)
     span = NASION_Y - L.tip_y
     s = np.clip((NASION_Y - Y) / span, 0.0, None)  # 0 nasion .. 1 tip
     dorsum = np.where(s <= 1, 0.15 + (P - 0.15) * s**1.35, 0.0)
@@ -224,9 +235,9 @@ def nose_height(X: np.ndarray, Y: np.ndarray, L: Layout) -> np.ndarray:
     alae = 0.0
     for sx in (1.0, -1.0):
         cx = sx * (W - 0.6)
-        alae = alae + 1.3 * _gauss(X, Y, cx, L.subnasale_y + 0.5, 0.62, 0.58)
-        alae = alae - 0.12 * np.exp(
-            -(((np.hypot((X - cx) / 0.85, (Y - L.subnasale_y - 0.5) / 0.8) - 1.0) / 0.14) ** 2)
+        alae = alae + 1.3 * _gauss(X, Y, cx, L.subnasale_y + 0.5, 0.62 * W / 1.75, 0.58 * length)
+        alae = alae - 0.08 * np.exp(
+            -(((np.hypot((X - cx) / 0.85, (Y - L.subnasale_y - 0.5) / 0.8) - 1.0) / 0.18) ** 2)
         )
     return np.maximum(ridge + tip, 0.0) + alae
 
@@ -236,7 +247,7 @@ def nostril_push(X: np.ndarray, Y: np.ndarray, L: Layout) -> np.ndarray:
     out = 0.0
     for sx in (1.0, -1.0):
         out = out + _gauss(X, Y, sx * 0.55 * L.alar_half_width / 1.75, L.subnasale_y + 0.32, 0.34, 0.2)
-    return 0.45 * out
+    return 0.38 * out
 
 
 def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) -> np.ndarray:
@@ -258,7 +269,7 @@ def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) 
     # nasolabial fold: groove along the line from the alar base to beside the mouth corner
     for sx in (1.0, -1.0):
         a = np.array([sx * (L.alar_half_width + 0.05), L.subnasale_y + 0.2])
-        b = np.array([sx * (MOUTH_HALF * L.mouth_scale[0] + 0.75), my - 1.4])
+        b = np.array([sx * (MOUTH_HALF * L.mouth_scale[0] + 1.3), my - 1.4])
         d = b - a
         tt = np.clip(((X - a[0]) * d[0] + (Y - a[1]) * d[1]) / (d @ d), 0.0, 1.0)
         dist = np.hypot(X - (a[0] + tt * d[0]), Y - (a[1] + tt * d[1]))
@@ -362,6 +373,6 @@ def skin_geometry(topo: HeadTopology, params: HeadParams) -> SkinGeometry:
             peak = np.where(upper, 0.8, 0.5)
             prof = np.exp(-(((min(u, 1.0) - peak) / 0.55) ** 2)) * np.exp(-((max(u - 1.0, 0.0) / 0.3) ** 2))
             ridge = 0.04 if u == 1 else 0.0
-            v[ids, 2] += (bulge * prof - 0.12 * max(1 - u, 0.0)) * corner_fade + ridge
+            v[ids, 2] += (bulge * prof - 0.12 * max(1 - u, 0.0) + ridge) * corner_fade
     mouth_mid = m.index[1][len(t) // 4]
     return SkinGeometry(v, chart, eye_c, R, v[mouth_mid].copy())

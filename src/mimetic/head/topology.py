@@ -24,6 +24,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from mimetic.head.params import HeadParamError
+
 CHART_D = 10.0  # gnomonic chart distance, cm
 EYE_CENTRE = np.array([3.15, 0.0])  # left eye (+X, the subject's left) in the canonical chart
 EYE_OUTER = (2.75, 2.25)  # semi-axes of the outermost eye ring
@@ -144,14 +146,19 @@ def _fibonacci(n: int) -> np.ndarray:
     return np.column_stack([r * np.cos(phi), z, r * np.sin(phi)])  # pole along ±y
 
 
-def _ring_quads(index: np.ndarray, flip: bool) -> np.ndarray:
-    """Triangles joining ring k to ring k+1; counter-clockwise seen from outside."""
+def _ring_quads(index: np.ndarray, flip: bool, swap: np.ndarray | None = None) -> np.ndarray:
+    """Triangles joining ring k to ring k+1; counter-clockwise seen from outside.
+
+    ``swap`` (per_ring,) bool chooses the other diagonal for the quads starting at those angles,
+    so that a ring crossing the mirror plane splits its quads symmetrically.
+    """
     k = index[:-1]
     k1 = index[1:]
     j1 = np.roll(index, -1, axis=1)[:-1]
     jk1 = np.roll(index, -1, axis=1)[1:]
-    a = np.stack([k, k1, jk1], axis=-1).reshape(-1, 3)
-    b = np.stack([k, jk1, j1], axis=-1).reshape(-1, 3)
+    swap = np.zeros(index.shape[1], bool) if swap is None else swap
+    a = np.where(swap[None, :, None], np.stack([k, k1, j1], -1), np.stack([k, k1, jk1], -1)).reshape(-1, 3)
+    b = np.where(swap[None, :, None], np.stack([k1, jk1, j1], -1), np.stack([k, jk1, j1], -1)).reshape(-1, 3)
     tris = np.concatenate([a, b])
     return tris[:, ::-1] if flip else tris
 
@@ -160,7 +167,7 @@ def _ring_quads(index: np.ndarray, flip: bool) -> np.ndarray:
 def build_topology(resolution: int = 10_000) -> HeadTopology:
     """The skin topology for about ``resolution`` skin vertices (1,500 to 250,000)."""
     if not 1_500 <= resolution <= 250_000:
-        raise ValueError(f"resolution={resolution} is outside the supported 1,500..250,000 skin vertices")
+        raise HeadParamError(f"resolution={resolution} is outside the supported 1,500..250,000 skin vertices")
     s = np.sqrt(resolution / 10_000)
     m_eye, u_eye = eye_ring_params(resolution)
     m_mouth, u_mouth = mouth_ring_params(resolution)
@@ -249,7 +256,7 @@ def build_topology(resolution: int = 10_000) -> HeadTopology:
     fill_faces = np.concatenate([half_faces, mirrored_faces])
     ring_faces = np.concatenate(
         [
-            _ring_quads(mouth_index, flip=False),
+            _ring_quads(mouth_index, flip=False, swap=(j >= m_mouth // 4) & (j < 3 * m_mouth // 4)),
             _ring_quads(eye_l_index, flip=False),
             _ring_quads(eye_r_index, flip=True),
         ]

@@ -59,11 +59,12 @@ _MUSCLES_C = [
     ("procerus", "linear", "nose_bridge_upper", "glabella", 0.04, 0.3, 1.3, 35, "forehead", False),
     ("mentalis", "linear", "pogonion", (0.0, -9.0), 0.05, 0.2, 1.3, 40, "chin", True),
 ]
-# sphincters: (name, side, centre, semi-major end (left-side chart point, mirrored for R), semi-minor, region)
+# sphincters: (name, side, centre, semi-major end (left-side chart point, mirrored for R), semi-minor);
+# a sphincter acts on everything inside its ellipse (both lips, both lids), so it has no region
 _SPHINCTERS = [
-    ("orbicularis_oris", "C", "upper_lip_inner", "mouth_corner_L", 0.05, "upper_lip"),
-    ("orbicularis_oculi_L", "L", "pupil_L", (5.9, 0.2), 0.085, "eyelid_upper_L"),
-    ("orbicularis_oculi_R", "R", "pupil_R", (5.9, 0.2), 0.085, "eyelid_upper_R"),
+    ("orbicularis_oris", "C", "upper_lip_inner", "mouth_corner_L", 0.05),
+    ("orbicularis_oculi_L", "L", "pupil_L", (5.9, 0.2), 0.085),
+    ("orbicularis_oculi_R", "R", "pupil_R", (5.9, 0.2), 0.085),
 ]
 # wires of the thesis (Table 4.1): name -> (points, driving muscles (same side), dropoff_rel, regions)
 _WIRES_L = {
@@ -229,7 +230,7 @@ def _muscles(head: Head, places: _Places) -> list[Muscle]:
                 region=region,
             )
         )
-    for name, side, centre, end, minor, region in _SPHINCTERS:
+    for name, side, centre, end, minor in _SPHINCTERS:
         muscles.append(
             Muscle(
                 name=name,
@@ -242,7 +243,7 @@ def _muscles(head: Head, places: _Places) -> list[Muscle]:
                 falloff_end_rel=1.5,
                 angle_rad=float(np.pi),
                 origin_inset_rel=0.0,
-                region=region,
+                region=None,
             )
         )
     return muscles
@@ -352,6 +353,9 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
         W[eye] = 0.0
         W[eye, BONES.index(f"eye_{side}")] = 1.0
     W[:, 0] = np.clip(1.0 - W[:, 1:].sum(axis=1), 0.0, None)
+    # the mouth cavity's rim coincides with the inner lip: give it the same weights, or it tears
+    rim = head.mesh.part_vertices("mouth")[: topo.mouth.index.shape[1]]
+    W[rim] = W[topo.mouth.index[0]]
     W /= W.sum(axis=1, keepdims=True)
     W[W < 1e-6] = 0.0
     W /= W.sum(axis=1, keepdims=True)

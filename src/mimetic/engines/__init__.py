@@ -1,0 +1,1 @@
+"""Deformation engines: activations in, vertex positions out (wire, vector; bones and skinning)."""

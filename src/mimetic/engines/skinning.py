@@ -1,0 +1,108 @@
+"""Bones: transforms from the jaw, eyelid, gaze and head channels, and linear blend skinning.
+
+Conventions (right-handed, +Y up, +Z forward; angles in radians, positive as named):
+
+* ``jaw_open`` rotates the jaw about +X through its pivot (the chin moves down and back);
+  ``jaw_slide`` and ``jaw_protrude`` translate it along +X and +Z by a fraction of the head height.
+* ``eyelid_upper_*`` > 0 closes the upper lid (rotation about +X through the eye centre);
+  ``eyelid_lower_*`` > 0 raises the lower lid (rotation about -X). The upper lid follows half of
+  the gaze pitch and the lower lid a fifth of it, as real lids do. The levator palpebrae and the
+  orbicularis oculi act on the lids through these bones (``LID_MUSCLES``), as in the thesis's rig,
+  where the lids are bones.
+* ``gaze_yaw`` > 0 turns both eyes to the subject's left (+X), ``gaze_pitch`` > 0 looks up,
+  ``gaze_convergence`` turns each eye toward the nose by half its value.
+* ``head_yaw`` > 0 turns the face to the subject's left, ``head_pitch`` > 0 nods the chin down,
+  ``head_roll`` > 0 tilts the top of the head to the subject's left; about the head joint.
+
+Every bone except ``head`` is a child of ``head``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from mimetic.rig.model import Rig
+
+LID_FOLLOWS_GAZE = (0.5, 0.2)  # upper, lower lid rotation per radian of gaze pitch
+# muscles that move the lids through the lid bones: (upper, lower) closing rotation, rad per unit
+LID_MUSCLES = {
+    "levator_palpebrae": (-0.3, 0.0),  # lifts the upper lid
+    "orbicularis_oculi": (0.75, 0.3),  # the sphincter closes both lids
+    "orbicularis_oculi_outer": (0.12, 0.18),  # squint
+}
+
+
+def rotation_x(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rotation_y(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rotation_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def about(rotation: np.ndarray, pivot: np.ndarray, translation: np.ndarray | None = None) -> np.ndarray:
+    """4x4 transform rotating about ``pivot`` (3,), then translating: x -> R (x - p) + p + t."""
+    m = np.eye(4)
+    m[:3, :3] = rotation
+    m[:3, 3] = pivot - rotation @ pivot + (0.0 if translation is None else translation)
+    return m
+
+
+def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
+    """World transforms (b, 4, 4) of the rig's bones, relative to rest, for a pose (c,).
+
+    Channels a rig lacks count as 0. ``transforms[k] @ [x, 1]`` moves a rest point bound to
+    bone ``rig.bone_names[k]``.
+    """
+    index = {n: i for i, n in enumerate(rig.channel_names)}
+
+    def ch(name: str) -> float:
+        return float(values[index[name]]) if name in index else 0.0
+
+    local = {}
+    head = rig.bone("head").head
+    local["head"] = about(
+        rotation_y(ch("head_yaw")) @ rotation_x(ch("head_pitch")) @ rotation_z(-ch("head_roll")), head
+    )
+    jaw = rig.bone("jaw").head
+    shift = rig.scale * np.array([ch("jaw_slide"), 0.0, ch("jaw_protrude")])
+    local["jaw"] = about(rotation_x(ch("jaw_open")), jaw, shift)
+    pitch = ch("gaze_pitch")
+    for side, sign in (("L", -1.0), ("R", 1.0)):
+        centre = rig.bone(f"eye_{side}").head
+        upper = ch(f"eyelid_upper_{side}") - LID_FOLLOWS_GAZE[0] * pitch
+        lower = ch(f"eyelid_lower_{side}") + LID_FOLLOWS_GAZE[1] * pitch
+        for muscle, (up, low) in LID_MUSCLES.items():
+            upper += up * ch(f"{muscle}_{side}")
+            lower += low * ch(f"{muscle}_{side}")
+        local[f"eyelid_upper_{side}"] = about(rotation_x(upper), rig.bone(f"eyelid_upper_{side}").head)
+        local[f"eyelid_lower_{side}"] = about(rotation_x(-lower), rig.bone(f"eyelid_lower_{side}").head)
+        yaw = ch("gaze_yaw") + sign * 0.5 * ch("gaze_convergence")
+        local[f"eye_{side}"] = about(rotation_y(yaw) @ rotation_x(-pitch), centre)
+    out = np.empty((len(rig.bones), 4, 4))
+    for k, bone in enumerate(rig.bones):
+        m = local.get(bone.name, np.eye(4))
+        out[k] = m if bone.parent is None else local.get(bone.parent, np.eye(4)) @ m
+    return out
+
+
+def linear_blend_skinning(vertices: np.ndarray, weights: sp.csr_matrix, transforms: np.ndarray) -> np.ndarray:
+    """Skinned positions (n, 3): v' = Σ_b w_vb (R_b v + t_b) for weights (n, b) and transforms (b, 4, 4)."""
+    out = np.zeros_like(vertices)
+    csc = weights.tocsc()
+    for b in range(transforms.shape[0]):
+        rows = csc.indices[csc.indptr[b] : csc.indptr[b + 1]]
+        if len(rows) == 0:
+            continue
+        w = csc.data[csc.indptr[b] : csc.indptr[b + 1]][:, None]  # (k, 1)
+        m = transforms[b]
+        out[rows] += w * (vertices[rows] @ m[:3, :3].T + m[:3, 3])
+    return out

@@ -1,0 +1,129 @@
+"""Case builders shared by the tests and the benchmarks (STYLE §10).
+
+Every builder is deterministic and returns immutable objects, so the expensive ones are cached
+and the same instance may be handed to many tests or benchmark cases:
+
+* ``tetrahedron()``, ``unit_square()``: tiny meshes with known answers;
+* ``small_head(seed)``, ``random_heads(n)``, ``head_with(params)``: generated heads at a low
+  resolution (2,500 skin vertices, about 4,200 vertices in all), built once per process;
+* ``range_end_params()``: each conformation parameter at either end of its range;
+* ``small_rig(seed)``: the recipe's rig of ``small_head(seed)``;
+* ``capped_skin(head)``: the head's skin with its eye and mouth openings closed, for
+  inside/outside tests.
+
+This module imports the test-free parts of mimetic only; nothing in the package imports it.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from mimetic.head.model import Head, make_head
+from mimetic.head.params import PARAM_RANGES, HeadParams
+from mimetic.mesh.geometry import boundary_loops
+from mimetic.mesh.model import Mesh
+from mimetic.rig.model import Rig
+
+SMALL_RESOLUTION = 2_500
+"""Requested skin vertex count of the small heads: about 0.25 s to build, 2,580 skin vertices."""
+
+RANDOM_SEEDS = tuple(range(20))
+"""Seeds of the random heads that the head and rig tests check (``small_head(seed)``)."""
+
+TETRAHEDRON_VERTICES = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+TETRAHEDRON_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])  # outward, counter-clockwise
+
+UNIT_SQUARE_VERTICES = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+UNIT_SQUARE_FACES = np.array([[0, 1, 2], [0, 2, 3]])  # counter-clockwise seen from +Z
+
+
+def tetrahedron() -> Mesh:
+    """Closed unit right-corner tetrahedron: 4 vertices, 4 outward faces, volume 1/6, no parts or units."""
+    return Mesh(TETRAHEDRON_VERTICES, TETRAHEDRON_FACES)
+
+
+def unit_square() -> Mesh:
+    """Open unit square in z = 0: 4 vertices, 2 triangles facing +Z, one boundary loop 0-1-2-3."""
+    return Mesh(UNIT_SQUARE_VERTICES, UNIT_SQUARE_FACES)
+
+
+@lru_cache(maxsize=128)
+def head_with(params: HeadParams | None = None, resolution: int = SMALL_RESOLUTION) -> Head:
+    """``make_head(params, resolution)``, built once per process (``None``: the default head)."""
+    return make_head(params, resolution=resolution)
+
+
+@lru_cache(maxsize=64)
+def small_head(seed: int | None = None, resolution: int = SMALL_RESOLUTION) -> Head:
+    """A generated head at a low resolution, built once per process.
+
+    Parameters
+    ----------
+    seed : int, optional
+        None gives the default head (``HeadParams()``, not a random draw); an integer gives
+        ``HeadParams.random(seed)``.
+    resolution : int
+        Requested skin vertex count (see ``make_head``).
+
+    Returns
+    -------
+    head : Head
+        Heads made at the same resolution correspond vertex by vertex.
+    """
+    params = None if seed is None else HeadParams.random(seed)
+    return head_with(params, resolution)
+
+
+def random_heads(n: int, resolution: int = SMALL_RESOLUTION) -> tuple[Head, ...]:
+    """The heads of ``HeadParams.random(seed)`` for seeds ``0 .. n-1`` (cached, see ``small_head``)."""
+    return tuple(small_head(seed, resolution) for seed in range(n))
+
+
+def range_end_params() -> dict[str, HeadParams]:
+    """Each conformation parameter at its minimum and at its maximum, the others at their defaults.
+
+    Returns
+    -------
+    cases : dict
+        ``"nose_length=0.85"`` → ``HeadParams(nose_length=0.85)``, two entries per parameter, in
+        the order of ``PARAM_RANGES``.
+    """
+    cases = {}
+    for name, (low, high, _) in PARAM_RANGES.items():
+        for value in (low, high):
+            cases[f"{name}={value:g}"] = HeadParams().with_values(**{name: value})
+    return cases
+
+
+@lru_cache(maxsize=16)
+def small_rig(seed: int | None = None, resolution: int = SMALL_RESOLUTION) -> Rig:
+    """``build_rig(small_head(seed, resolution))``, built once per process."""
+    from mimetic.rig.recipe import build_rig
+
+    return build_rig(small_head(seed, resolution))
+
+
+def capped_skin(head: Head) -> Mesh:
+    """The skin of ``head`` as a closed surface: each boundary loop capped by a fan to its centroid.
+
+    The generated skin has three openings (the eyes and the mouth). Each becomes a fan of
+    triangles around one new vertex at the centroid of its boundary loop, oriented like the
+    skin, so the result is watertight with outward normals (positive signed volume).
+
+    Returns
+    -------
+    mesh : Mesh
+        Vertices ``(n_skin + loops, 3)`` float64: the skin's, then one centroid per loop; faces
+        ``(m, 3)`` int64: the skin's, then the caps. No parts, colours or units.
+    """
+    skin, _ = head.mesh.submesh("skin")
+    vertices, faces = [skin.vertices], [skin.faces]
+    n = skin.n_vertices
+    for loop in boundary_loops(skin.faces):  # loop follows its faces' edges
+        vertices.append(skin.vertices[loop].mean(axis=0, keepdims=True))
+        # the cap walks each boundary edge (a, b) backwards: triangle (b, a, centre)
+        faces.append(np.column_stack([np.roll(loop, -1), loop, np.full(len(loop), n)]))
+        n += 1
+    return Mesh(np.concatenate(vertices), np.concatenate(faces))
