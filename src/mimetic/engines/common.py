@@ -9,15 +9,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.interpolate import LinearNDInterpolator
 
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
+from mimetic.head.parts import IRIS_ANGLE
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.rig.model import Rig
 
 SKIN_PARTS = ("skin", "mouth")  # the deformable surface; other parts only follow bones
 SKULL_CLEARANCE_REL = 0.0  # the skull surface lies on the rest forehead (as the thesis lofts it)
-SCULPTOR_MARGIN_REL = 0.0015  # lids stay this far outside the cornea sphere
+SCULPTOR_MARGIN_REL = 0.0002  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
+CORNEA_BULGE = 1.07  # the eyeball's radius over the iris, relative to its radius (see head/parts.py)
 
 
 @dataclass(frozen=True)
@@ -61,12 +64,83 @@ def lip_mask(rig: Rig, insertion_vertex_point) -> np.ndarray:
     return mask
 
 
-class Chain:
-    """The stages after the muscles: skull push, skinning and eyelid sculptors (prepared once)."""
+def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (m,) from points (m, 3) to the segment a-b (3,), and the parameter t (m,) in [0, 1]."""
+    ab = b - a
+    t = np.clip((points - a) @ ab / max(ab @ ab, 1e-30), 0.0, 1.0)
+    return np.linalg.norm(points - (a + t[:, None] * ab), axis=1), t
 
-    def __init__(self, rig: Rig, *, skull: bool = True) -> None:
+
+def crease_deltas(rig: Rig) -> dict[str, np.ndarray]:
+    """Crease clusters (thesis §4.3.2): channel name -> displacement (n, 3) per unit activation.
+
+    Each crease is a line on the rest skin whose vertices sink inward (against the normal) with a
+    Gaussian profile across the line, driven linearly by a muscle: forehead lines (frontalis),
+    vertical glabella lines (corrugator), a nasion line (procerus), crow's feet (orbicularis oculi)
+    and a deeper nasolabial fold (zygomatic major and the levators). Rigs without the needed
+    landmarks get no creases.
+    """
+    need = [f"{n}_{side}" for n in ("brow_mid", "eye_outer_corner", "alar_base", "mouth_corner") for side in "LR"]
+    if not all(n in rig.landmarks for n in [*need, "nasion", "glabella"]):
+        return {}
+    s = rig.scale
+    v = rig.mesh.vertices
+    normals = surface_normals(rig)
+    skin = deformable_vertices(rig)
+
+    def lm(name: str) -> np.ndarray:
+        return rig.landmark_positions([name])[0]
+
+    def on_surface(x: float, y: float, near: np.ndarray) -> np.ndarray:
+        """The rest vertex nearest to (x, y) seen from the front, among ``near``."""
+        return v[near[np.argmin((v[near, 0] - x) ** 2 + (v[near, 1] - y) ** 2)]]
+
+    front = skin[v[skin, 2] > 0.15 * s]
+    out: dict[str, np.ndarray] = {}
+
+    def add(channel: str, a: np.ndarray, b: np.ndarray, width: float, depth: float) -> None:
+        if channel not in rig.channel_names:
+            return
+        dist, t = _segment_distance(v[skin], a, b)
+        w = np.exp(-((dist / width) ** 2)) * np.sin(np.pi * (0.1 + 0.8 * t)) ** 0.5
+        delta = out.setdefault(channel, np.zeros_like(v))
+        delta[skin] -= (depth * w)[:, None] * normals[skin]
+
+    for side, sx in (("L", 1.0), ("R", -1.0)):
+        brow = lm(f"brow_mid_{side}")
+        for k in range(3):
+            y = brow[1] + (0.09 + 0.045 * k) * s
+            inner = [on_surface(sx * x * s, y, front) for x in (0.005, 0.11)]
+            outer = [on_surface(sx * x * s, y, front) for x in (0.07, 0.19)]
+            add(f"frontalis_inner_{side}", *inner, 0.006 * s, 0.004 * s)
+            add(f"frontalis_outer_{side}", *outer, 0.006 * s, 0.004 * s)
+        top = on_surface(sx * 0.03 * s, lm("glabella")[1] + 0.05 * s, front)
+        add(f"corrugator_{side}", on_surface(sx * 0.025 * s, lm("nasion")[1], front), top, 0.006 * s, 0.006 * s)
+        corner = lm(f"eye_outer_corner_{side}")
+        for k in (-1, 0, 1):
+            a = corner + np.array([sx * 0.02 * s, 0.012 * k * s, -0.01 * s])
+            b = corner + np.array([sx * 0.07 * s, 0.035 * k * s, -0.03 * s])
+            for muscle in ("orbicularis_oculi_outer", "orbicularis_oculi"):
+                add(f"{muscle}_{side}", a, b, 0.005 * s, 0.003 * s)
+        fold_end = lm(f"mouth_corner_{side}") + np.array([sx * 0.035 * s, -0.03 * s, -0.01 * s])
+        for muscle in ("zygomatic_major", "levator_labii_mid", "levator_labii_nasal"):
+            add(f"{muscle}_{side}", lm(f"alar_base_{side}"), fold_end, 0.008 * s, 0.007 * s)
+    nasion = lm("nasion")
+    add("procerus", nasion + np.array([-0.03 * s, 0.0, 0.0]), nasion + np.array([0.03 * s, 0.0, 0.0]), 0.006 * s,
+        0.005 * s)
+    return out
+
+
+class Chain:
+    """The stages after the muscles: skull push, creases, skinning, eyelid sculptors (prepared once)."""
+
+    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
         self.rig = rig
         v = rig.mesh.vertices
+        folds = crease_deltas(rig) if creases else {}
+        self.crease_channels = np.array([rig.channel_index(c) for c in folds], dtype=np.int64)
+        self.creases = sp.csr_matrix(np.array([d.ravel() for d in folds.values()]).reshape(len(folds), -1))
+        self.weights = rig.skin_weights.tocsc()
         self.skull_ids = np.asarray(rig.regions.get("forehead", np.zeros(0, np.int64)))
         self.skull = None
         if skull and len(self.skull_ids) > 10:
@@ -76,43 +150,42 @@ class Chain:
         for side in ("L", "R"):
             if f"eye_{side}" not in rig.bone_names:
                 continue
-            ids = np.concatenate(
-                [rig.regions.get(f"eyelid_upper_{side}", []), rig.regions.get(f"eyelid_lower_{side}", [])]
-            )
-            eye = (
-                rig.mesh.faces[rig.mesh.parts[f"eye_{side}"]].ravel()
-                if f"eye_{side}" in rig.mesh.parts
-                else None
-            )
-            centre = rig.bone(f"eye_{side}").head
-            radius = np.linalg.norm(v[np.unique(eye)] - centre, axis=1).max() if eye is not None else 0.0
-            self.lids.append((ids.astype(np.int64), centre, radius + SCULPTOR_MARGIN_REL * rig.scale))
+            ids = np.concatenate([rig.regions.get(f"eyelid_{lid}_{side}", np.zeros(0, np.int64)) for lid in ("upper", "lower")])
+            bone = rig.bone(f"eye_{side}")
+            # only lid vertices clear of the eyeball at rest (the conjunctiva skirt is tucked inside)
+            dist, limit = self._eyeball_clearance(v[ids], bone.head, bone.tail - bone.head)
+            outside = dist >= limit
+            self.lids.append((ids[outside].astype(np.int64), rig.bone_index(f"eye_{side}"), bone.head, bone.tail))
+
+    def _eyeball_clearance(self, points: np.ndarray, centre: np.ndarray, gaze: np.ndarray) -> tuple:
+        """Distances (k,) of points from the eye centre and the sculptor's limit (k,) for each."""
+        radius = np.linalg.norm(gaze)
+        d = points - centre
+        dist = np.linalg.norm(d, axis=1)
+        over_iris = d @ gaze > dist * radius * np.cos(IRIS_ANGLE)
+        limit = radius * np.where(over_iris, CORNEA_BULGE, 1.0) + SCULPTOR_MARGIN_REL * self.rig.scale
+        return dist, limit
 
     def apply(self, deformed: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """Skull push (+Z onto the rest forehead), skinning, then lid sculptors; (n, 3) -> (n, 3)."""
-        v = deformed
+        """Skull push (+Z onto the rest forehead), creases, skinning, lid sculptors; (n, 3) -> (n, 3)."""
+        v = deformed.copy()
         if self.skull is not None:
             p = v[self.skull_ids]
             z = self.skull(p[:, 0], p[:, 1])
-            behind = np.isfinite(z) & (p[:, 2] < z)
-            if behind.any():
-                v = v.copy()
-                v[self.skull_ids[behind], 2] = z[behind]
+            behind = np.isfinite(z) & (p[:, 2] < z - 1e-9 * self.rig.scale)
+            v[self.skull_ids[behind], 2] = z[behind]
+        if len(self.crease_channels):
+            v += (self.creases.T @ values[self.crease_channels]).reshape(-1, 3)
         transforms = bone_transforms(self.rig, values)
-        moving = ~np.all(np.abs(transforms - np.eye(4)) < 1e-15, axis=(1, 2))
-        if moving.any():
-            v = linear_blend_skinning(v, self.rig.skin_weights, transforms)
-        for ids, rest_centre, radius in self.lids:
-            if len(ids) == 0:
-                continue
-            k = self.rig.bone_index(f"eye_{'L' if rest_centre[0] > 0 else 'R'}")
-            centre = transforms[k, :3, :3] @ rest_centre + transforms[k, :3, 3]
-            d = v[ids] - centre
-            dist = np.linalg.norm(d, axis=1)
-            inside = dist < radius
-            if inside.any():
-                v = v.copy() if v is deformed else v
-                v[ids[inside]] = centre + d[inside] / dist[inside, None] * radius
+        v = linear_blend_skinning(v, self.weights, transforms)
+        for ids, bone, rest_centre, rest_tip in self.lids:
+            # sculptor: lids never inside the eyeball (radius R, R·CORNEA_BULGE over the iris)
+            m = transforms[bone]
+            centre = m[:3, :3] @ rest_centre + m[:3, 3]
+            dist, limit = self._eyeball_clearance(v[ids], centre, m[:3, :3] @ (rest_tip - rest_centre))
+            inside = dist < limit
+            d = v[ids[inside]] - centre
+            v[ids[inside]] = centre + d * (limit[inside] / dist[inside])[:, None]
         return v
 
 

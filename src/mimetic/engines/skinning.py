@@ -24,6 +24,7 @@ import scipy.sparse as sp
 
 from mimetic.rig.model import Rig
 
+IDENTITY = np.eye(4)
 LID_FOLLOWS_GAZE = (0.5, 0.2)  # upper, lower lid rotation per radian of gaze pitch
 # muscles that move the lids through the lid bones: (upper, lower) closing rotation, rad per unit
 LID_MUSCLES = {
@@ -94,15 +95,20 @@ def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
     return out
 
 
-def linear_blend_skinning(vertices: np.ndarray, weights: sp.csr_matrix, transforms: np.ndarray) -> np.ndarray:
-    """Skinned positions (n, 3): v' = Σ_b w_vb (R_b v + t_b) for weights (n, b) and transforms (b, 4, 4)."""
-    out = np.zeros_like(vertices)
-    csc = weights.tocsc()
+def linear_blend_skinning(vertices: np.ndarray, weights: sp.spmatrix, transforms: np.ndarray) -> np.ndarray:
+    """Skinned positions (n, 3): v' = Σ_b w_vb (R_b v + t_b) for weights (n, b) and transforms (b, 4, 4).
+
+    Since each row of weights sums to 1, this is v + Σ_b w_vb (M_b v - v): bones whose transform is
+    the identity cost nothing. Pass the weights as CSC (``weights.tocsc()``) to avoid a conversion.
+    """
+    csc = weights if sp.issparse(weights) and weights.format == "csc" else sp.csc_matrix(weights)
+    out = vertices.copy()
     for b in range(transforms.shape[0]):
-        rows = csc.indices[csc.indptr[b] : csc.indptr[b + 1]]
-        if len(rows) == 0:
-            continue
-        w = csc.data[csc.indptr[b] : csc.indptr[b + 1]][:, None]  # (k, 1)
         m = transforms[b]
-        out[rows] += w * (vertices[rows] @ m[:3, :3].T + m[:3, 3])
+        if np.array_equal(m, IDENTITY):
+            continue
+        rows = csc.indices[csc.indptr[b] : csc.indptr[b + 1]]
+        w = csc.data[csc.indptr[b] : csc.indptr[b + 1]][:, None]  # (k, 1)
+        p = vertices[rows]
+        out[rows] += w * (p @ m[:3, :3].T + m[:3, 3] - p)
     return out

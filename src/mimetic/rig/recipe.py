@@ -20,6 +20,7 @@ from mimetic.head.model import Head
 from mimetic.head.params import HeadParams
 from mimetic.head.shape import skin_geometry
 from mimetic.head.topology import build_topology
+from mimetic.mesh.geometry import closest_on_polyline
 from mimetic.mesh.model import SurfacePoint
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
 
@@ -38,26 +39,26 @@ BONES = (
 # origin / insertion: a landmark name or a canonical chart point (X, Y) on the left side;
 # right-side muscles mirror the left. "C" muscles sit on the midline.
 _MUSCLES_L = [
-    ("frontalis_inner", "linear", (1.3, 7.6), "brow_inner_mid", 0.07, 0.4, 1.25, 40, "forehead"),
-    ("frontalis_outer", "linear", (4.2, 7.3), "brow_outer_mid", 0.07, 0.4, 1.25, 40, "forehead"),
-    ("corrugator", "linear", (0.7, 1.0), "brow_mid", 0.05, 0.3, 1.3, 35, "brow"),
-    ("orbicularis_oculi_inner", "linear", (1.3, 0.3), (2.4, -2.3), 0.05, 0.3, 1.3, 40, "cheek"),
-    ("orbicularis_oculi_outer", "linear", (5.6, 0.4), (4.2, -2.1), 0.06, 0.3, 1.3, 40, "cheek"),
-    ("levator_labii_nasal", "linear", (1.0, -0.3), "alar_base", 0.045, 0.35, 1.3, 30, "nasolabial"),
-    ("levator_labii_mid", "linear", (2.6, -1.6), "upper_lip_outer", 0.05, 0.4, 1.3, 30, "upper_lip"),
-    ("zygomatic_minor", "linear", (4.0, -2.1), "upper_lip_outer", 0.045, 0.4, 1.3, 30, "upper_lip"),
-    ("zygomatic_major", "linear", (6.0, -2.4), "mouth_corner", 0.06, 0.45, 1.3, 35, "cheek"),
-    ("risorius", "linear", (6.4, -7.6), "mouth_corner", 0.05, 0.45, 1.3, 30, "cheek"),
-    ("buccinator", "linear", (4.6, -7.3), "mouth_corner", 0.05, 0.4, 1.3, 30, "cheek"),
-    ("triangularis", "linear", (3.7, -11.2), "mouth_corner", 0.05, 0.45, 1.3, 30, "jaw"),
-    ("orbicularis_oris_incisivis", "linear", (0.8, -6.7), "mouth_corner", 0.04, 0.4, 1.3, 30, "upper_lip"),
-    ("depressor_labii", "linear", (1.6, -10.8), "lower_lip_mid", 0.045, 0.4, 1.3, 30, "lower_lip"),
-    ("levator_palpebrae", "linear", "brow_mid", "eye_upper_lid", 0.04, 0.3, 1.2, 45, "eyelid_upper"),
-    ("platysma", "sheet", (5.0, -17.0), "lower_lip_outer", 0.1, 0.3, 1.2, 30, "jaw"),
+    ("frontalis_inner", "linear", (1.3, 7.6), "brow_inner_mid", 0.07, 0.8, 1.35, 40, "forehead"),
+    ("frontalis_outer", "linear", (4.2, 7.3), "brow_outer_mid", 0.07, 0.8, 1.35, 40, "forehead"),
+    ("corrugator", "linear", (0.7, 1.0), "brow_mid", 0.05, 0.85, 1.4, 35, "brow"),
+    ("orbicularis_oculi_inner", "linear", (1.3, 0.3), (2.4, -2.3), 0.05, 0.85, 1.4, 40, "cheek"),
+    ("orbicularis_oculi_outer", "linear", (5.6, 0.4), (4.2, -2.1), 0.06, 0.85, 1.4, 40, "cheek"),
+    ("levator_labii_nasal", "linear", (1.0, -0.3), "alar_base", 0.045, 0.85, 1.4, 30, "nasolabial"),
+    ("levator_labii_mid", "linear", (2.6, -1.6), "upper_lip_outer", 0.05, 0.85, 1.4, 30, "upper_lip"),
+    ("zygomatic_minor", "linear", (4.0, -2.1), "upper_lip_outer", 0.045, 0.85, 1.4, 30, "upper_lip"),
+    ("zygomatic_major", "linear", (6.0, -2.4), "mouth_corner", 0.06, 0.85, 1.4, 35, "cheek"),
+    ("risorius", "linear", (6.4, -7.6), "mouth_corner", 0.05, 0.85, 1.4, 30, "cheek"),
+    ("buccinator", "linear", (4.6, -7.3), "mouth_corner", 0.05, 0.85, 1.4, 30, "cheek"),
+    ("triangularis", "linear", (3.7, -11.2), "mouth_corner", 0.05, 0.85, 1.4, 30, "jaw"),
+    ("orbicularis_oris_incisivis", "linear", (0.8, -6.7), "mouth_corner", 0.04, 0.85, 1.4, 30, "upper_lip"),
+    ("depressor_labii", "linear", (1.6, -10.8), "lower_lip_mid", 0.045, 0.85, 1.4, 30, "lower_lip"),
+    ("levator_palpebrae", "linear", "brow_mid", "eye_upper_lid", 0.04, 0.85, 1.4, 45, "eyelid_upper"),
+    ("platysma", "sheet", (5.0, -17.0), "lower_lip_outer", 0.1, 0.85, 1.4, 30, "jaw"),
 ]
 _MUSCLES_C = [
-    ("procerus", "linear", "nose_bridge_upper", "glabella", 0.04, 0.3, 1.3, 35, "forehead", False),
-    ("mentalis", "linear", "pogonion", (0.0, -9.0), 0.05, 0.2, 1.3, 40, "chin", True),
+    ("procerus", "linear", "nose_bridge_upper", "glabella", 0.04, 0.85, 1.4, 35, "forehead", False),
+    ("mentalis", "linear", "pogonion", (0.0, -9.0), 0.05, 0.8, 1.3, 40, "chin", True),
 ]
 # sphincters: (name, side, centre, semi-major end (left-side chart point, mirrored for R), semi-minor);
 # a sphincter acts on everything inside its ellipse (both lips, both lids), so it has no region
@@ -66,37 +67,38 @@ _SPHINCTERS = [
     ("orbicularis_oculi_L", "L", "pupil_L", (5.9, 0.2), 0.085),
     ("orbicularis_oculi_R", "R", "pupil_R", (5.9, 0.2), 0.085),
 ]
-# wires of the thesis (Table 4.1): name -> (points, driving muscles (same side), dropoff_rel, regions)
+# wires of the thesis (Table 4.1): name -> (points, driving muscles (same side), dropoff_rel, regions the
+# wire must not move: its deformation set is the skin within the dropoff, minus these)
 _WIRES_L = {
     "forehead": (
         [(0.6, 4.8), (2.2, 5.0), (3.8, 4.7), (5.2, 4.0)],
         ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"],
-        0.09,
-        ["forehead", "brow"],
+        0.12,
+        [],
     ),
     "eyebrow": (
         ["brow_inner", "brow_inner_mid", "brow_mid", "brow_outer_mid", "brow_outer"],
-        ["frontalis_inner", "frontalis_outer", "corrugator", "procerus"],
-        0.06,
-        ["brow", "forehead"],
+        ["frontalis_inner", "frontalis_outer", "corrugator", "procerus", "orbicularis_oculi"],
+        0.09,
+        [],
     ),
     "nose": (
         [(0.9, -0.2), (1.3, -2.0), "alare"],
         ["orbicularis_oculi_inner", "levator_labii_nasal"],
-        0.05,
-        ["nose", "cheek"],
+        0.07,
+        ["upper_lip", "lower_lip"],
     ),
     "cheek": (
         [(1.9, -1.6), (3.2, -2.2), (4.6, -2.0), (5.6, -1.0)],
-        ["orbicularis_oculi_outer"],
-        0.06,
-        ["cheek", "eyelid_lower"],
+        ["orbicularis_oculi_outer", "orbicularis_oculi"],
+        0.09,
+        ["upper_lip", "lower_lip"],
     ),
     "nasolabial": (
         ["alar_base", (2.5, -5.6), (3.3, -7.4)],
         ["levator_labii_nasal", "levator_labii_mid", "zygomatic_minor"],
-        0.05,
-        ["nasolabial", "cheek"],
+        0.08,
+        ["lower_lip"],
     ),
     "mouth_upper_corner": (
         ["upper_lip_peak", "upper_lip_outer", "mouth_corner"],
@@ -109,9 +111,10 @@ _WIRES_L = {
             "buccinator",
             "triangularis",
             "orbicularis_oris_incisivis",
+            "orbicularis_oris",
         ],
-        0.045,
-        ["upper_lip"],
+        0.08,
+        ["lower_lip"],
     ),
     "mouth_lower_corner": (
         ["lower_lip_mid", "lower_lip_outer", "mouth_corner"],
@@ -123,23 +126,39 @@ _WIRES_L = {
             "orbicularis_oris_incisivis",
             "depressor_labii",
             "platysma",
+            "orbicularis_oris",
+            "mentalis",
         ],
-        0.045,
-        ["lower_lip", "chin"],
+        0.08,
+        ["upper_lip"],
     ),
 }
 _WIRES_C = {
     "mouth_upper_center": (
         ["upper_lip_peak_R", "upper_lip_top", "upper_lip_peak_L"],
-        ["levator_labii_nasal", "levator_labii_mid", "zygomatic_major", "orbicularis_oris_incisivis"],
-        0.045,
-        ["upper_lip"],
+        [
+            "levator_labii_nasal",
+            "levator_labii_mid",
+            "zygomatic_major",
+            "orbicularis_oris_incisivis",
+            "orbicularis_oris",
+        ],
+        0.08,
+        ["lower_lip"],
     ),
     "mouth_lower_center": (
         ["lower_lip_mid_R", "lower_lip_bottom", "lower_lip_mid_L"],
-        ["zygomatic_major", "risorius", "triangularis", "depressor_labii", "orbicularis_oris_incisivis"],
-        0.045,
-        ["lower_lip", "chin"],
+        [
+            "zygomatic_major",
+            "risorius",
+            "triangularis",
+            "depressor_labii",
+            "orbicularis_oris_incisivis",
+            "orbicularis_oris",
+            "mentalis",
+        ],
+        0.08,
+        ["upper_lip"],
     ),
 }
 
@@ -184,15 +203,6 @@ class _Places:
         bary = [0.0, 0.0, 0.0]
         bary[corner] = 1.0
         return SurfacePoint(face, (bary[0], bary[1], bary[2]))
-
-
-def _region(head: Head, names: list[str], side: str) -> np.ndarray:
-    ids = []
-    for n in names:
-        key = n if n in head.regions else f"{n}_{side}"
-        if key in head.regions:
-            ids.append(head.regions[key])
-    return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
 
 
 def _muscles(head: Head, places: _Places) -> list[Muscle]:
@@ -249,14 +259,15 @@ def _muscles(head: Head, places: _Places) -> list[Muscle]:
     return muscles
 
 
-def _wires(head: Head, places: _Places, muscles: dict[str, Muscle]) -> list[Wire]:
-    v = head.mesh.vertices
+def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float) -> list[Wire]:
+    v, f = head.mesh.vertices, head.mesh.faces
+    skin = np.unique(np.concatenate([f[head.mesh.parts[p]].ravel() for p in ("skin", "mouth")]))
     wires = []
     specs = [(f"{n}_{s}", s, spec) for s in ("L", "R") for n, spec in _WIRES_L.items()]
     specs += [(n, "C", spec) for n, spec in _WIRES_C.items()]
-    for name, side, (points, drivers, dropoff, regions) in specs:
+    for name, side, (points, drivers, dropoff, exclude) in specs:
         pts = [places.point(p, side) for p in points]
-        pos = np.array([p.position(v, head.mesh.faces) for p in pts])
+        pos = np.array([p.position(v, f) for p in pts])
         sides = ("L", "R") if side == "C" else (side,)
         weights = {}
         for d in drivers:
@@ -264,19 +275,25 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle]) -> list[Wire
                 m = muscles.get(d) or muscles.get(f"{d}_{s}")
                 if m is None or m.name in weights:
                     continue
-                ins = m.insertion.position(v, head.mesh.faces)
-                length = np.linalg.norm(ins - m.origin.position(v, head.mesh.faces))
-                dist = np.linalg.norm(pos - ins, axis=1)
-                weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.5 * length)) ** 2)), 6)
+                ins = m.insertion.position(v, f)
+                length = np.linalg.norm(ins - m.origin.position(v, f))
+                if m.kind == "sphincter":  # the ring pulls every control point inside it alike
+                    near = np.linalg.norm(pos - m.origin.position(v, f), axis=1) < 1.3 * length
+                    weights[m.name] = near.astype(np.float64)
+                else:
+                    dist = np.linalg.norm(pos - ins, axis=1)
+                    weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.5 * length)) ** 2)), 6)
+        # deformation set: the skin within the dropoff, without the lip this wire must not move
+        _, _, dist = closest_on_polyline(v[skin], pos)
+        members = skin[dist < dropoff * scale]
+        members = np.setdiff1d(members, np.concatenate([head.regions[r] for r in exclude] or [np.zeros(0, int)]))
         wires.append(
             Wire(
                 name=name,
                 side=side,
                 points=tuple(pts),
                 dropoff_rel=dropoff,
-                vertices=_region(head, regions, side)
-                if side != "C"
-                else np.union1d(_region(head, regions, "L"), _region(head, regions, "R")),
+                vertices=members,
                 muscle_weights=weights,
                 rest_weight=np.ones(len(pts)),
             )
@@ -390,7 +407,7 @@ def build_rig(head: Head) -> Rig:
     places = _Places(head)
     muscles = _muscles(head, places)
     scale = float(head.vertices[: head.n_skin, 1].max() - head.landmark_positions(["menton"])[0][1])
-    wires = _wires(head, places, {m.name: m for m in muscles})
+    wires = _wires(head, places, {m.name: m for m in muscles}, scale)
     bones, pivot = _bones(head)
     landmarks = {name: places.vertex_point(v) for name, v in head.landmarks.items()}
     return Rig(

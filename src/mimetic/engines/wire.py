@@ -1,0 +1,121 @@
+"""The ``wire`` engine: the skin/muscle model of the automated rigging thesis (§4.2).
+
+For one wire with control points (CVs) ``c0`` (k, 3) on the rest skin:
+
+1. A muscle's contraction scales its joint about the bony origin ``O`` along the unit axis ``a``
+   (origin -> insertion); at full contraction the scale is ``1 - CONTRACTION`` (the reversed
+   mentalis: ``1 + CONTRACTION``), so the locator of CV k parented to the joint sits at
+   ``c0_k + dL_k`` with ``dL_k = -CONTRACTION ((c0_k - O) . a) a``. A sphincter scales about its
+   centre in the face plane instead.
+2. Each CV's cluster is point-constrained, with normalised weights, to one locator per affecting
+   muscle plus a rest locator: ``dc_k = sum_j w_jk a_j dL_jk / (w0_k + sum_j w_jk a_j)``. The
+   constraint weight of a muscle's locator is keyed to its activation ``a_j`` (a set-driven key),
+   so one muscle alone moves a CV by up to ``w/(w0 + w)`` of its locator motion and several
+   muscles pulling one CV are damped, as the thesis describes. This makes the engine nonlinear.
+3. The wire deformer moves each vertex P of the wire's deformation set by
+   ``f(d / d0) (D(u) - B(u))``, ``f(x) = (1 - x^2)^2`` for d < d0, where ``u`` is the closest
+   point on the rest polyline B, d the distance to it and ``D(u) - B(u)`` the interpolated CV
+   motion.
+
+Choices the thesis leaves open, made here: polylines (the thesis's final rig used linear wires);
+where several wires reach one vertex their dropoff weights are normalised when they sum past 1
+(a partition of unity, so overlapping wires blend instead of adding up); dropoffs are fractions of
+the head height; the deformation sets (the skin within the dropoff minus the lip the wire must not
+touch) keep the upper and lower lips apart. After the muscles the shared chain runs: skull
+push-to-surface, creases, skinning, eyelid sculptors (``common.Chain``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from mimetic.engines.common import Chain, muscle_frame
+from mimetic.mesh.geometry import closest_on_polyline
+from mimetic.rig.activations import check_activations
+from mimetic.rig.model import Rig, Wire
+
+CONTRACTION = 0.25  # joint scale reduction at full activation (s = 1 - 0.25)
+SPHINCTER_CONTRACTION = 0.35  # scale reduction about a sphincter's centre at full activation
+
+
+def dropoff(x: np.ndarray) -> np.ndarray:
+    """The wire dropoff f(x) = (1 - x^2)^2 on [0, 1], 0 beyond."""
+    return np.where(x < 1.0, (1.0 - np.minimum(x, 1.0) ** 2) ** 2, 0.0)
+
+
+def locator_motion(rig: Rig, cv: np.ndarray, muscle: str) -> np.ndarray:
+    """Motion (k, 3) of the locators at CVs ``cv`` (k, 3) parented to ``muscle``, at full contraction."""
+    m = rig.muscle(muscle)
+    frame = muscle_frame(rig, muscle)
+    if m.kind == "sphincter":
+        rel = cv - frame.attachment
+        rel[:, 2] = 0.0  # squeeze in the face plane
+        return -SPHINCTER_CONTRACTION * rel
+    axis = (frame.insertion - frame.attachment) / frame.length
+    along = (cv - frame.attachment) @ axis  # (k,)
+    return (CONTRACTION if m.reversed else -CONTRACTION) * along[:, None] * axis
+
+
+class WireEngine:
+    """The wire skin/muscle model with the thesis's deformation chain; prepare once, deform often.
+
+    Prepared data: ``weights`` (K, c) constraint weight of each channel's locator on each of the
+    K control points of all wires, ``rest`` (K,) rest-locator weights, ``motion`` (K, c, 3)
+    locator motion at full contraction, and ``spread`` (3n, 3K) sparse, the wire deformers'
+    dropoff-weighted interpolation from CV motion to vertex motion.
+    """
+
+    name = "wire"
+
+    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
+        self.rig = rig
+        self.channels = rig.channel_names
+        v, f = rig.mesh.vertices, rig.mesh.faces
+        c = len(rig.channels)
+        cvs = [np.array([p.position(v, f) for p in w.points]) for w in rig.wires]
+        starts = np.cumsum([0] + [len(p) for p in cvs])
+        k_total = int(starts[-1])
+        self.weights = np.zeros((k_total, c))
+        self.rest = np.concatenate([w.rest_weight for w in rig.wires])
+        self.motion = np.zeros((k_total, c, 3))
+        rows, cols, vals = [], [], []
+        for wire, cv, start in zip(rig.wires, cvs, starts, strict=False):
+            for muscle, w in wire.muscle_weights.items():
+                j = rig.channel_index(muscle)
+                self.weights[start : start + len(cv), j] = w
+                self.motion[start : start + len(cv), j] = locator_motion(rig, cv, muscle)
+            r, k, val = _spread(rig, wire, cv)
+            rows.append(r)
+            cols.append(start + k)
+            vals.append(val)
+        rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+        total = np.bincount(rows, weights=vals, minlength=rig.n_vertices)  # summed dropoff per vertex
+        vals = vals / np.maximum(total[rows], 1.0)  # overlapping wires blend
+        spread = sp.csr_matrix((vals, (rows, cols)), shape=(rig.n_vertices, k_total))
+        self.spread = sp.kron(spread, sp.identity(3), format="csr")  # (3n, 3K)
+        self.chain = Chain(rig, skull=skull, creases=creases)
+
+    def muscle_offsets(self, values: np.ndarray) -> np.ndarray:
+        """Skin displacement (n, 3) from the muscles alone, for a pose (c,)."""
+        wa = self.weights * values  # (K, c) activation-keyed constraint weights
+        num = np.einsum("kc,kcd->kd", wa, self.motion)
+        dc = num / (self.rest + wa.sum(axis=1))[:, None]  # (K, 3) CV motion
+        return (self.spread @ dc.ravel()).reshape(-1, 3)
+
+    def deform(self, values: np.ndarray) -> np.ndarray:
+        """Vertex positions (n, 3) for one pose ``values`` (c,) in the rig's channel order."""
+        values = check_activations(self.rig, values)
+        if values.ndim != 1:
+            raise ValueError("deform takes one pose (c,); loop over frames or bake a Basis for clips")
+        return self.chain.apply(self.rig.mesh.vertices + self.muscle_offsets(values), values)
+
+
+def _spread(rig: Rig, wire: Wire, cv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entries (vertex, CV, weight) of one wire's deformer: f(d/d0) (1 - t), f(d/d0) t."""
+    ids = np.asarray(wire.vertices)
+    seg, t, dist = closest_on_polyline(rig.mesh.vertices[ids], cv)
+    f = dropoff(dist / (wire.dropoff_rel * rig.scale))
+    keep = f > 0
+    ids, seg, t, f = ids[keep], seg[keep], t[keep], f[keep]
+    return np.concatenate([ids, ids]), np.concatenate([seg, seg + 1]), np.concatenate([f * (1 - t), f * t])
