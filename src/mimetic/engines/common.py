@@ -13,14 +13,13 @@ import scipy.sparse as sp
 from scipy.interpolate import LinearNDInterpolator
 
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
-from mimetic.head.parts import IRIS_ANGLE
+from mimetic.head.parts import eyeball_profile
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.rig.model import Rig
 
 SKIN_PARTS = ("skin", "mouth")  # the deformable surface; other parts only follow bones
 SKULL_CLEARANCE_REL = 0.0  # the skull surface lies on the rest forehead (as the thesis lofts it)
 SCULPTOR_MARGIN_REL = 0.0002  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
-CORNEA_BULGE = 1.07  # the eyeball's radius over the iris, relative to its radius (see head/parts.py)
 
 
 @dataclass(frozen=True)
@@ -80,13 +79,15 @@ def crease_deltas(rig: Rig) -> dict[str, np.ndarray]:
     and a deeper nasolabial fold (zygomatic major and the levators). Rigs without the needed
     landmarks get no creases.
     """
-    need = [f"{n}_{side}" for n in ("brow_mid", "eye_outer_corner", "alar_base", "mouth_corner") for side in "LR"]
+    need = [
+        f"{n}_{side}" for n in ("brow_mid", "eye_outer_corner", "alar_base", "mouth_corner") for side in "LR"
+    ]
     if not all(n in rig.landmarks for n in [*need, "nasion", "glabella"]):
         return {}
     s = rig.scale
     v = rig.mesh.vertices
     normals = surface_normals(rig)
-    skin = deformable_vertices(rig)
+    skin = rig.mesh.part_vertices("skin") if "skin" in rig.mesh.parts else deformable_vertices(rig)
 
     def lm(name: str) -> np.ndarray:
         return rig.landmark_positions([name])[0]
@@ -115,7 +116,13 @@ def crease_deltas(rig: Rig) -> dict[str, np.ndarray]:
             add(f"frontalis_inner_{side}", *inner, 0.006 * s, 0.004 * s)
             add(f"frontalis_outer_{side}", *outer, 0.006 * s, 0.004 * s)
         top = on_surface(sx * 0.03 * s, lm("glabella")[1] + 0.05 * s, front)
-        add(f"corrugator_{side}", on_surface(sx * 0.025 * s, lm("nasion")[1], front), top, 0.006 * s, 0.006 * s)
+        add(
+            f"corrugator_{side}",
+            on_surface(sx * 0.025 * s, lm("nasion")[1], front),
+            top,
+            0.006 * s,
+            0.006 * s,
+        )
         corner = lm(f"eye_outer_corner_{side}")
         for k in (-1, 0, 1):
             a = corner + np.array([sx * 0.02 * s, 0.012 * k * s, -0.01 * s])
@@ -126,8 +133,13 @@ def crease_deltas(rig: Rig) -> dict[str, np.ndarray]:
         for muscle in ("zygomatic_major", "levator_labii_mid", "levator_labii_nasal"):
             add(f"{muscle}_{side}", lm(f"alar_base_{side}"), fold_end, 0.008 * s, 0.007 * s)
     nasion = lm("nasion")
-    add("procerus", nasion + np.array([-0.03 * s, 0.0, 0.0]), nasion + np.array([0.03 * s, 0.0, 0.0]), 0.006 * s,
-        0.005 * s)
+    add(
+        "procerus",
+        nasion + np.array([-0.03 * s, 0.0, 0.0]),
+        nasion + np.array([0.03 * s, 0.0, 0.0]),
+        0.006 * s,
+        0.005 * s,
+    )
     return out
 
 
@@ -150,20 +162,24 @@ class Chain:
         for side in ("L", "R"):
             if f"eye_{side}" not in rig.bone_names:
                 continue
-            ids = np.concatenate([rig.regions.get(f"eyelid_{lid}_{side}", np.zeros(0, np.int64)) for lid in ("upper", "lower")])
+            ids = np.concatenate(
+                [rig.regions.get(f"eyelid_{lid}_{side}", np.zeros(0, np.int64)) for lid in ("upper", "lower")]
+            )
             bone = rig.bone(f"eye_{side}")
             # only lid vertices clear of the eyeball at rest (the conjunctiva skirt is tucked inside)
             dist, limit = self._eyeball_clearance(v[ids], bone.head, bone.tail - bone.head)
             outside = dist >= limit
-            self.lids.append((ids[outside].astype(np.int64), rig.bone_index(f"eye_{side}"), bone.head, bone.tail))
+            self.lids.append(
+                (ids[outside].astype(np.int64), rig.bone_index(f"eye_{side}"), bone.head, bone.tail)
+            )
 
     def _eyeball_clearance(self, points: np.ndarray, centre: np.ndarray, gaze: np.ndarray) -> tuple:
         """Distances (k,) of points from the eye centre and the sculptor's limit (k,) for each."""
         radius = np.linalg.norm(gaze)
         d = points - centre
         dist = np.linalg.norm(d, axis=1)
-        over_iris = d @ gaze > dist * radius * np.cos(IRIS_ANGLE)
-        limit = radius * np.where(over_iris, CORNEA_BULGE, 1.0) + SCULPTOR_MARGIN_REL * self.rig.scale
+        angle = np.arccos(np.clip(d @ gaze / np.maximum(dist * radius, 1e-30), -1.0, 1.0))
+        limit = radius * eyeball_profile(angle) + SCULPTOR_MARGIN_REL * self.rig.scale
         return dist, limit
 
     def apply(self, deformed: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -179,7 +195,7 @@ class Chain:
         transforms = bone_transforms(self.rig, values)
         v = linear_blend_skinning(v, self.weights, transforms)
         for ids, bone, rest_centre, rest_tip in self.lids:
-            # sculptor: lids never inside the eyeball (radius R, R·CORNEA_BULGE over the iris)
+            # sculptor: lids never inside the eyeball (its profile, the cornea included)
             m = transforms[bone]
             centre = m[:3, :3] @ rest_centre + m[:3, 3]
             dist, limit = self._eyeball_clearance(v[ids], centre, m[:3, :3] @ (rest_tip - rest_centre))

@@ -33,9 +33,9 @@ from mimetic.engines.common import Chain, deformable_vertices, lip_mask, muscle_
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig
 
-STRENGTH = 0.22           # K: linear and sheet motion at full activation, fraction of muscle length
+STRENGTH = 0.22  # K: linear and sheet motion at full activation, fraction of muscle length
 SPHINCTER_STRENGTH = 0.35  # K_s: fraction of the distance to the centre at full activation
-SATURATION_REL = 0.1      # per-vertex displacement soft limit, fraction of the head height
+SATURATION_REL = 0.1  # per-vertex displacement soft limit, fraction of the head height
 FORWARD = np.array([0.0, 0.0, 1.0])
 
 
@@ -60,7 +60,9 @@ def muscle_displacement(rig: Rig, name: str, ids: np.ndarray) -> np.ndarray:
         px = rel @ major / (major @ major)
         py = rel @ minor_dir / (m.width_rel * rig.scale)
         rho = np.hypot(px, py)
-        fall = np.cos(np.clip((rho - m.falloff_start_rel) / (m.falloff_end_rel - m.falloff_start_rel), 0, 1) * np.pi / 2)
+        fall = np.cos(
+            np.clip((rho - m.falloff_start_rel) / (m.falloff_end_rel - m.falloff_start_rel), 0, 1) * np.pi / 2
+        )
         fall *= rho < m.falloff_end_rel
         in_plane = rel - np.outer(rel @ FORWARD, FORWARD)
         squeeze = -SPHINCTER_STRENGTH * in_plane
@@ -68,7 +70,7 @@ def muscle_displacement(rig: Rig, name: str, ids: np.ndarray) -> np.ndarray:
         return (squeeze + push) * fall[:, None]
     axis = (frame.insertion - frame.attachment) / frame.length
     rel = p - frame.attachment
-    along = rel @ axis                                        # (k,)
+    along = rel @ axis  # (k,)
     dist = np.linalg.norm(rel, axis=1)
     lateral = np.linalg.norm(rel - along[:, None] * axis, axis=1)
     width = 2.0 * m.width_rel * rig.scale
@@ -80,7 +82,7 @@ def muscle_displacement(rig: Rig, name: str, ids: np.ndarray) -> np.ndarray:
     mu = np.arccos(np.clip(along / np.maximum(dist, 1e-12), -1.0, 1.0))
     angular = np.cos(np.clip(mu / m.angle_rad, 0.0, 1.0) * np.pi / 2) * (mu < m.angle_rad)
     radial = _radial(dist / frame.length, m.falloff_start_rel, m.falloff_end_rel)
-    toward = -rel / np.maximum(dist, 1e-12)[:, None]          # unit, toward the attachment
+    toward = -rel / np.maximum(dist, 1e-12)[:, None]  # unit, toward the attachment
     return -sign * STRENGTH * frame.length * (angular * radial * across)[:, None] * toward
 
 
@@ -120,7 +122,7 @@ class VectorEngine:
         values = check_activations(self.rig, values)
         if values.ndim != 1:
             raise ValueError("deform takes one pose (c,); loop over frames or bake a Basis for clips")
-        d = (self._deltas @ values).reshape(-1, 3)                 # (n, 3), summed on the rest skin
+        d = (self._deltas @ values).reshape(-1, 3)  # (n, 3), summed on the rest skin
         length = np.linalg.norm(d, axis=1, keepdims=True)
         safe = np.where(length > 0, length, 1.0)
         d *= np.where(length > 0, self._limit * np.tanh(length / self._limit) / safe, 0.0)

@@ -6,7 +6,7 @@ For one wire with control points (CVs) ``c0`` (k, 3) on the rest skin:
    (origin -> insertion); at full contraction the scale is ``1 - CONTRACTION`` (the reversed
    mentalis: ``1 + CONTRACTION``), so the locator of CV k parented to the joint sits at
    ``c0_k + dL_k`` with ``dL_k = -CONTRACTION ((c0_k - O) . a) a``. A sphincter scales about its
-   centre in the face plane instead.
+   centre in the face plane instead, and pushes forward (+Z) by a quarter of that (a pucker).
 2. Each CV's cluster is point-constrained, with normalised weights, to one locator per affecting
    muscle plus a rest locator: ``dc_k = sum_j w_jk a_j dL_jk / (w0_k + sum_j w_jk a_j)``. The
    constraint weight of a muscle's locator is keyed to its activation ``a_j`` (a set-driven key),
@@ -50,8 +50,9 @@ def locator_motion(rig: Rig, cv: np.ndarray, muscle: str) -> np.ndarray:
     frame = muscle_frame(rig, muscle)
     if m.kind == "sphincter":
         rel = cv - frame.attachment
-        rel[:, 2] = 0.0  # squeeze in the face plane
-        return -SPHINCTER_CONTRACTION * rel
+        rel[:, 2] = 0.0  # squeeze in the face plane, and bulge forward a quarter as much
+        squeeze = -SPHINCTER_CONTRACTION * rel
+        return squeeze + 0.25 * np.linalg.norm(squeeze, axis=1, keepdims=True) * np.array([0.0, 0.0, 1.0])
     axis = (frame.insertion - frame.attachment) / frame.length
     along = (cv - frame.attachment) @ axis  # (k,)
     return (CONTRACTION if m.reversed else -CONTRACTION) * along[:, None] * axis
@@ -112,10 +113,32 @@ class WireEngine:
 
 
 def _spread(rig: Rig, wire: Wire, cv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Entries (vertex, CV, weight) of one wire's deformer: f(d/d0) (1 - t), f(d/d0) t."""
+    """Entries (vertex, CV, weight) of one wire's deformer: f(d/d0) (1 - t), f(d/d0) t.
+
+    A vertex equally close to two segments (the midline of a symmetric wire) takes the mean of
+    both closest points, so mirror-symmetric wires deform mirror-symmetrically.
+    """
     ids = np.asarray(wire.vertices)
-    seg, t, dist = closest_on_polyline(rig.mesh.vertices[ids], cv)
+    points = rig.mesh.vertices[ids]
+    seg, t, dist = closest_on_polyline(points, cv)
     f = dropoff(dist / (wire.dropoff_rel * rig.scale))
-    keep = f > 0
-    ids, seg, t, f = ids[keep], seg[keep], t[keep], f[keep]
-    return np.concatenate([ids, ids]), np.concatenate([seg, seg + 1]), np.concatenate([f * (1 - t), f * t])
+    rows, cols, vals = [ids, ids], [seg, seg + 1], [f * (1 - t), f * t]
+    if len(cv) > 2:  # ties: the closest point on the other segments
+        mask = np.ones((len(ids), len(cv) - 1), bool)
+        mask[np.arange(len(ids)), seg] = False
+        best = np.full(len(ids), np.inf)
+        seg2 = np.zeros(len(ids), int)
+        t2 = np.zeros(len(ids))
+        for k in range(len(cv) - 1):
+            _, tk, dk = closest_on_polyline(points, cv[k : k + 2])
+            better = mask[:, k] & (dk < best)
+            best[better], seg2[better], t2[better] = dk[better], k, tk[better]
+        tie = np.abs(best - dist) <= 1e-12 * rig.scale
+        half = np.where(tie, 0.5, 1.0)
+        vals = [vals[0] * half, vals[1] * half]
+        rows += [ids[tie], ids[tie]]
+        cols += [seg2[tie], seg2[tie] + 1]
+        vals += [0.5 * f[tie] * (1 - t2[tie]), 0.5 * f[tie] * t2[tie]]
+    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    keep = vals > 0
+    return rows[keep], cols[keep], vals[keep]

@@ -18,6 +18,7 @@ TOOTH = (0.93, 0.91, 0.83)
 TONGUE = (0.78, 0.38, 0.38)
 MOUTH = (0.45, 0.18, 0.18)
 IRIS_ANGLE = 0.52  # angular radius of the iris on the eyeball, rad
+CORNEA_BULGE = 0.07  # how far the cornea bulges out of the eyeball sphere, relative to its radius
 PUPIL_ANGLE = 0.19
 
 
@@ -71,6 +72,16 @@ def _lathe(profile_angles: np.ndarray, radius_of, cols: int) -> tuple[np.ndarray
     return _closed_grid(front, rings, back)
 
 
+def eyeball_profile(theta: np.ndarray) -> np.ndarray:
+    """The eyeball's radius relative to its sphere at angle ``theta`` (rad) from the gaze axis.
+
+    1 everywhere except over the iris, where the cornea bulges by up to 7 %.
+    """
+    theta = np.abs(np.asarray(theta, dtype=np.float64))
+    bulge = CORNEA_BULGE * np.clip(np.cos(np.minimum(theta, np.pi) / IRIS_ANGLE * np.pi / 2), 0, None) ** 2
+    return 1.0 + bulge * (theta < IRIS_ANGLE)
+
+
 def eyeball(centre: np.ndarray, radius: float, s: float) -> Mesh:
     """An eyeball looking down +Z with sclera, iris and pupil colours and a slight cornea bulge."""
     cols = max(16, 4 * round(8 * s))
@@ -83,11 +94,7 @@ def eyeball(centre: np.ndarray, radius: float, s: float) -> Mesh:
     back = np.linspace(IRIS_ANGLE, np.pi, max(8, round(12 * s)) + 1)[1:-1]
     angles = np.concatenate([front, back])
 
-    def radius_of(th: np.ndarray) -> np.ndarray:
-        bulge = 0.07 * np.clip(np.cos(np.minimum(np.abs(th), np.pi) / IRIS_ANGLE * np.pi / 2), 0, None) ** 2
-        return radius * (1.0 + bulge * (np.abs(th) < IRIS_ANGLE))
-
-    v, f = _lathe(angles, radius_of, cols)
+    v, f = _lathe(angles, lambda th: radius * eyeball_profile(th), cols)
     polar = np.arccos(np.clip(v[:, 2] / np.linalg.norm(v, axis=1), -1, 1))
     colors = np.where(
         (polar <= PUPIL_ANGLE + 1e-9)[:, None],

@@ -303,7 +303,9 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     return boundary_paths(faces).loops
 
 
-def closest_on_polyline(points: np.ndarray, polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def closest_on_polyline(
+    points: np.ndarray, polyline: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Closest points of ``points`` (m, 3) on ``polyline`` (k, 3), k >= 2.
 
     Returns the segment index (m,) int, the parameter t (m,) in [0, 1] along that segment and
@@ -311,7 +313,9 @@ def closest_on_polyline(points: np.ndarray, polyline: np.ndarray) -> tuple[np.nd
     """
     a, b = polyline[:-1], polyline[1:]  # (s, 3)
     ab = b - a
-    t = np.einsum("msd,sd->ms", points[:, None] - a[None], ab) / np.maximum(np.einsum("sd,sd->s", ab, ab), 1e-30)
+    t = np.einsum("msd,sd->ms", points[:, None] - a[None], ab) / np.maximum(
+        np.einsum("sd,sd->s", ab, ab), 1e-30
+    )
     t = np.clip(t, 0.0, 1.0)  # (m, s)
     dist = np.linalg.norm(points[:, None] - (a[None] + t[..., None] * ab[None]), axis=2)  # (m, s)
     seg = np.argmin(dist, axis=1)

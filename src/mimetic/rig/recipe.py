@@ -286,7 +286,9 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float
         # deformation set: the skin within the dropoff, without the lip this wire must not move
         _, _, dist = closest_on_polyline(v[skin], pos)
         members = skin[dist < dropoff * scale]
-        members = np.setdiff1d(members, np.concatenate([head.regions[r] for r in exclude] or [np.zeros(0, int)]))
+        members = np.setdiff1d(
+            members, np.concatenate([head.regions[r] for r in exclude] or [np.zeros(0, int)])
+        )
         wires.append(
             Wire(
                 name=name,

@@ -1,0 +1,175 @@
+"""The wire and vector engines: exact rest pose, locality, symmetry, monotonicity, and actions.
+
+Every check runs on both engines, on the default head and on a random head.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from itertools import pairwise
+
+import numpy as np
+import pytest
+
+from mimetic.engines import ENGINES, make_engine
+from mimetic.errors import ActivationError, MimeticError
+from mimetic.rig.activations import pose
+from mimetic.testing import small_head, small_rig
+
+SEEDS = (None, 3)
+CASES = [(engine, seed) for engine in ENGINES for seed in SEEDS]
+IDS = [f"{engine}-{'default' if seed is None else f'seed{seed}'}" for engine, seed in CASES]
+
+
+@cache
+def engine_for(name: str, seed: int | None):
+    return make_engine(small_rig(seed), name)
+
+
+def deform(engine, **values: float) -> np.ndarray:
+    return engine.deform(pose(engine.rig, values))
+
+
+def landmark(engine, name: str, vertices: np.ndarray | None = None) -> np.ndarray:
+    rig = engine.rig
+    point = rig.landmarks[name]
+    v = rig.mesh.vertices if vertices is None else vertices
+    return point.position(v, rig.mesh.faces)
+
+
+@pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
+def test_engine_zero_activation_gives_the_neutral_exactly(name, seed):
+    engine = engine_for(name, seed)
+    rest = engine.rig.mesh.vertices
+    out = engine.deform(pose(engine.rig))
+    assert out.shape == rest.shape and out.dtype == np.float64
+    assert np.array_equal(out, rest)
+    assert np.array_equal(engine.rig.mesh.vertices, rest)  # the rig is untouched
+
+
+@pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
+def test_engine_muscles_move_only_the_skin_near_them(name, seed):
+    engine = engine_for(name, seed)
+    rig = engine.rig
+    rest = rig.mesh.vertices
+    parts = rig.mesh.parts
+    rigid = np.unique(
+        np.concatenate(
+            [
+                rig.mesh.faces[parts[p]].ravel()
+                for p in ("eye_L", "eye_R", "ear_L", "ear_R", "teeth_upper", "teeth_lower", "tongue")
+            ]
+        )
+    )
+    for muscle in ("zygomatic_major_L", "frontalis_inner_R", "depressor_labii_L", "corrugator_L"):
+        moved = np.linalg.norm(deform(engine, **{muscle: 1.0}) - rest, axis=1)
+        assert moved.max() > 0.005 * rig.scale, f"{muscle} hardly moves anything ({moved.max():.3g})"
+        assert moved[rigid].max() == 0.0, f"{muscle} moves eyes, ears, teeth or tongue"
+        m = rig.muscle(muscle)
+        insertion = m.insertion.position(rest, rig.mesh.faces)
+        far = np.linalg.norm(rest - insertion, axis=1) > 0.4 * rig.scale
+        assert moved[far].max() == 0.0, f"{muscle} moves skin far from its insertion"
+
+
+@pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
+def test_engine_left_activation_mirrors_the_right(name, seed):
+    engine = engine_for(name, seed)
+    mirror = small_head(seed).mirror
+    flip = np.array([-1.0, 1.0, 1.0])
+    for base in (
+        "zygomatic_major",
+        "frontalis_outer",
+        "triangularis",
+        "orbicularis_oculi",
+        "levator_labii_nasal",
+    ):
+        left = deform(engine, **{f"{base}_L": 0.8})
+        right = deform(engine, **{f"{base}_R": 0.8})
+        np.testing.assert_allclose(left[mirror] * flip, right, atol=1e-9, err_msg=base)
+    both = deform(engine, zygomatic_major_L=0.6, zygomatic_major_R=0.6, jaw_open=0.2)
+    np.testing.assert_allclose(both[mirror] * flip, both, atol=1e-9)
+
+
+@pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
+def test_engine_displacement_grows_monotonically_with_activation(name, seed):
+    engine = engine_for(name, seed)
+    rest = engine.rig.mesh.vertices
+    for muscle in ("zygomatic_major_L", "frontalis_inner_L", "mentalis", "orbicularis_oris", "platysma_R"):
+        amounts = [
+            np.linalg.norm(deform(engine, **{muscle: a}) - rest, axis=1) for a in (0.25, 0.5, 0.75, 1.0)
+        ]
+        for lo, hi in pairwise(amounts):
+            assert np.all(hi >= lo - 1e-12), muscle
+        assert amounts[-1].max() > amounts[0].max() * 1.5, muscle
+
+
+@pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
+def test_engine_muscle_actions_read_as_described(name, seed):
+    engine = engine_for(name, seed)
+    s = engine.rig.scale
+
+    def moved(lm: str, **values: float) -> np.ndarray:
+        return landmark(engine, lm, deform(engine, **values)) - landmark(engine, lm)
+
+    # corrugator pulls the brow toward the midline and down
+    d = moved("brow_mid_L", corrugator_L=1.0)
+    assert d[0] < -0.002 * s and d[1] < -0.001 * s, d
+    # zygomatic major pulls the mouth corner up and back (lateral, toward the ear)
+    d = moved("mouth_corner_L", zygomatic_major_L=1.0)
+    assert d[1] > 0.01 * s and d[0] > 0.003 * s, d
+    # mentalis pushes the lower lip up
+    assert moved("lower_lip_bottom", mentalis=1.0)[1] > 0.002 * s
+    # frontalis raises the brows
+    assert moved("brow_mid_L", frontalis_inner_L=1.0, frontalis_outer_L=1.0)[1] > 0.01 * s
+    # orbicularis oris purses: the corners come together and the lips push forward
+    rest_width = np.linalg.norm(landmark(engine, "mouth_corner_L") - landmark(engine, "mouth_corner_R"))
+    v = deform(engine, orbicularis_oris=1.0)
+    width = np.linalg.norm(landmark(engine, "mouth_corner_L", v) - landmark(engine, "mouth_corner_R", v))
+    assert width < rest_width - 0.01 * s
+    assert moved("upper_lip_top", orbicularis_oris=1.0)[2] > 0.0
+    # triangularis pulls the corner down; depressor labii pulls the lower lip down
+    assert moved("mouth_corner_L", triangularis_L=1.0)[1] < -0.005 * s
+    assert moved("lower_lip_bottom", depressor_labii_L=1.0, depressor_labii_R=1.0)[1] < -0.005 * s
+    # the jaw opens: chin down, upper lip stays
+    assert moved("pogonion", jaw_open=0.3)[1] < -0.05 * s
+    assert np.linalg.norm(moved("upper_lip_top", jaw_open=0.3)) < 0.002 * s
+
+
+@pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
+def test_engine_eyelids_close_without_entering_the_eyeball(name, seed):
+    engine = engine_for(name, seed)
+    rig = engine.rig
+    for values in (
+        {"eyelid_upper_L": 0.8, "eyelid_lower_L": 0.3},
+        {"orbicularis_oculi_L": 1.0},
+        {"gaze_yaw": 0.6, "gaze_pitch": -0.5},
+        {"gaze_pitch": 0.5, "eyelid_upper_L": -0.25},
+        {"orbicularis_oculi_outer_L": 1.0, "zygomatic_major_L": 1.0},
+    ):
+        v = engine.deform(pose(rig, values))
+        for side in "LR":
+            bone = rig.bone(f"eye_{side}")
+            centre, radius = bone.head, np.linalg.norm(bone.tail - bone.head)  # gaze rotates about the centre
+            lids = np.concatenate([rig.regions[f"eyelid_upper_{side}"], rig.regions[f"eyelid_lower_{side}"]])
+            rest_out = (
+                np.linalg.norm(rig.mesh.vertices[lids] - centre, axis=1) > radius
+            )  # not the tucked skirt
+            dist = np.linalg.norm(v[lids[rest_out]] - centre, axis=1)
+            assert dist.min() >= radius - 1e-9, (values, side, dist.min(), radius)
+    # closing: the upper lid margin comes down to the lower one
+    v = deform(engine, eyelid_upper_L=0.8)
+    gap = landmark(engine, "eye_upper_lid_L", v)[1] - landmark(engine, "eye_lower_lid_L", v)[1]
+    rest_gap = landmark(engine, "eye_upper_lid_L")[1] - landmark(engine, "eye_lower_lid_L")[1]
+    assert gap < 0.3 * rest_gap
+
+
+def test_engine_rejects_bad_poses():
+    engine = engine_for("wire", None)
+    with pytest.raises(ActivationError, match="zygomatic_major_L"):
+        engine.deform(pose(engine.rig, {"zygomatic_major_L": 1.5}))
+    with pytest.raises(ActivationError, match="shape"):
+        engine.deform(np.zeros(3))
+    with pytest.raises(ActivationError, match="not finite"):
+        engine.deform(np.full(len(engine.rig.channels), np.nan))
+    with pytest.raises(MimeticError, match="unknown engine"):
+        make_engine(engine.rig, "tissue2")
