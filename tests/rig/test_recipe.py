@@ -241,7 +241,7 @@ def test_build_rig_eyeballs_follow_their_eye_bones(seed):
         assert bone.parent == "head"
         np.testing.assert_array_equal(bone.head, head.eye_centres[i])
         lid = rig.bone_index(f"eyelid_upper_{side}")
-        assert w[head.landmarks[f"eye_upper_lid_{side}"], lid] == 1.0
+        assert 0.5 < w[head.landmarks[f"eye_upper_lid_{side}"], lid] <= 1.0
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -79,7 +79,7 @@ def bake(
     seed: int = 0,
     progress: Progress | None = None,
 ) -> BakeResult:
-    """Linearise ``engine`` into a ``Basis`` with up to ``correctives`` pairwise terms, and report its error."""
+    """Linearise ``engine`` into a ``Basis`` with up to ``correctives`` pairwise terms; report its error."""
     rig = engine.rig
     c = len(rig.channels)
     zero = np.array([ch.default for ch in rig.channels])

@@ -47,6 +47,18 @@ def deformable_vertices(rig: Rig) -> np.ndarray:
     return np.unique(np.concatenate([rig.mesh.faces[rig.mesh.parts[p]].ravel() for p in parts]))
 
 
+def muscle_mask(rig: Rig) -> np.ndarray:
+    """How much (n,) of each vertex's motion the muscles may drive: 1 minus its eyelid bone weight.
+
+    The lids are bones (as in the thesis); skin fully bound to a lid bone follows the lid only, and
+    the lid's blend into the surrounding skin blends the two, so nothing tears at the lid border.
+    """
+    lids = [rig.bone_index(b) for b in rig.bone_names if b.startswith("eyelid_")]
+    if not lids:
+        return np.ones(rig.n_vertices)
+    return 1.0 - np.asarray(rig.skin_weights[:, lids].sum(axis=1)).ravel()
+
+
 def lip_mask(rig: Rig, insertion_vertex_point) -> np.ndarray:
     """Vertices a muscle inserting at a point may move: not the opposite lip (n,) bool."""
     n = rig.n_vertices

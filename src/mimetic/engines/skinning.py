@@ -4,7 +4,8 @@ Conventions (right-handed, +Y up, +Z forward; angles in radians, positive as nam
 
 * ``jaw_open`` rotates the jaw about +X through its pivot (the chin moves down and back);
   ``jaw_slide`` and ``jaw_protrude`` translate it along +X and +Z by a fraction of the head height.
-* ``eyelid_upper_*`` > 0 closes the upper lid (rotation about +X through the eye centre);
+* ``eyelid_upper_*`` > 0 closes the upper lid (rotation about +X through the eye centre); its
+  maximum is the angle that closes the eye;
   ``eyelid_lower_*`` > 0 raises the lower lid (rotation about -X). The upper lid follows half of
   the gaze pitch and the lower lid a fifth of it, as real lids do. The levator palpebrae and the
   orbicularis oculi act on the lids through these bones (``LID_MUSCLES``), as in the thesis's rig,
@@ -26,11 +27,12 @@ from mimetic.rig.model import Rig
 
 IDENTITY = np.eye(4)
 LID_FOLLOWS_GAZE = (0.5, 0.2)  # upper, lower lid rotation per radian of gaze pitch
-# muscles that move the lids through the lid bones: (upper, lower) closing rotation, rad per unit
+# muscles that move the lids through the lid bones: (upper, lower) closing rotation per unit
+# activation, as a fraction of the upper lid's full closing angle (the eyelid_upper channel's maximum)
 LID_MUSCLES = {
-    "levator_palpebrae": (-0.3, 0.0),  # lifts the upper lid
-    "orbicularis_oculi": (0.75, 0.3),  # the sphincter closes both lids
-    "orbicularis_oculi_outer": (0.12, 0.18),  # squint
+    "levator_palpebrae": (-0.45, 0.0),  # lifts the upper lid
+    "orbicularis_oculi": (0.95, 0.35),  # the sphincter closes both lids
+    "orbicularis_oculi_outer": (0.15, 0.25),  # squint
 }
 
 
@@ -81,9 +83,10 @@ def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
         centre = rig.bone(f"eye_{side}").head
         upper = ch(f"eyelid_upper_{side}") - LID_FOLLOWS_GAZE[0] * pitch
         lower = ch(f"eyelid_lower_{side}") + LID_FOLLOWS_GAZE[1] * pitch
+        closing = rig.channel(f"eyelid_upper_{side}").maximum if f"eyelid_upper_{side}" in index else 0.6
         for muscle, (up, low) in LID_MUSCLES.items():
-            upper += up * ch(f"{muscle}_{side}")
-            lower += low * ch(f"{muscle}_{side}")
+            upper += up * closing * ch(f"{muscle}_{side}")
+            lower += low * closing * ch(f"{muscle}_{side}")
         local[f"eyelid_upper_{side}"] = about(rotation_x(upper), rig.bone(f"eyelid_upper_{side}").head)
         local[f"eyelid_lower_{side}"] = about(rotation_x(-lower), rig.bone(f"eyelid_lower_{side}").head)
         yaw = ch("gaze_yaw") + sign * 0.5 * ch("gaze_convergence")

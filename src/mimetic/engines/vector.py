@@ -13,7 +13,8 @@ muscle is proportional to its activation. Kernels (for unit activation, lengths 
 * **sphincter**: centre c, semi-axes from the insertion (major) and width_rel (minor) in the face
   plane; elliptical radius rho. Skin inside rho < 1 is drawn toward the centre in the face plane
   by ``K_s rho``-scaled motion (a "string bag") and pushed forward (+Z) by a quarter of that;
-  it falls off with a cosine to 0 at rho = falloff_end_rel.
+  it falls off with a cosine to 0 at rho = falloff_end_rel. Around an eye only the orbital ring
+  (rho > 0.25) squeezes: the lids themselves close through their bones.
 * **sheet**: parallel fibres along the axis: motion toward the origin along the axis, with the
   linear muscle's radial falloff along the axis and a cosine falloff across its width.
 
@@ -29,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from mimetic.engines.common import Chain, deformable_vertices, lip_mask, muscle_frame
+from mimetic.engines.common import Chain, deformable_vertices, lip_mask, muscle_frame, muscle_mask
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig
 
@@ -44,6 +45,11 @@ def _radial(x: np.ndarray, start: float, end: float) -> np.ndarray:
     rise = np.sin(np.clip(x / start, 0.0, 1.0) * np.pi / 2)
     fall = np.cos(np.clip((x - start) / (end - start), 0.0, 1.0) * np.pi / 2)
     return np.where(x < start, rise, fall) * (x < end)
+
+
+def _on_eyeball(rig: Rig, face: int) -> bool:
+    parts = rig.mesh.parts
+    return any(face in parts[p] for p in ("eye_L", "eye_R") if p in parts)
 
 
 def muscle_displacement(rig: Rig, name: str, ids: np.ndarray) -> np.ndarray:
@@ -64,6 +70,8 @@ def muscle_displacement(rig: Rig, name: str, ids: np.ndarray) -> np.ndarray:
             np.clip((rho - m.falloff_start_rel) / (m.falloff_end_rel - m.falloff_start_rel), 0, 1) * np.pi / 2
         )
         fall *= rho < m.falloff_end_rel
+        if _on_eyeball(rig, m.origin.face):  # the orbital ring squeezes; the lids close by their bones
+            fall *= np.clip((rho - 0.25) / 0.3, 0.0, 1.0) ** 2
         in_plane = rel - np.outer(rel @ FORWARD, FORWARD)
         squeeze = -SPHINCTER_STRENGTH * in_plane
         push = 0.25 * np.linalg.norm(squeeze, axis=1, keepdims=True) * FORWARD
@@ -90,10 +98,11 @@ def vector_deltas(rig: Rig) -> sp.csr_matrix:
     """Displacements (3n, c) per unit of each muscle channel, as a sparse matrix (bones: 0)."""
     skin = np.zeros(rig.n_vertices, dtype=bool)
     skin[deformable_vertices(rig)] = True
+    share = muscle_mask(rig)
     rows, cols, vals = [], [], []
     for m in rig.muscles:
-        ids = np.nonzero(skin & lip_mask(rig, m.insertion))[0]
-        d = muscle_displacement(rig, m.name, ids)
+        ids = np.nonzero(skin & lip_mask(rig, m.insertion) & (share > 0))[0]
+        d = muscle_displacement(rig, m.name, ids) * share[ids, None]
         keep = np.abs(d).max(axis=1) > 0
         ids, d = ids[keep], d[keep]
         rows.append((3 * ids[:, None] + np.arange(3)).ravel())

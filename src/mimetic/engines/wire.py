@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from mimetic.engines.common import Chain, muscle_frame
+from mimetic.engines.common import Chain, muscle_frame, muscle_mask
 from mimetic.mesh.geometry import closest_on_polyline
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig, Wire
@@ -92,7 +92,7 @@ class WireEngine:
             vals.append(val)
         rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
         total = np.bincount(rows, weights=vals, minlength=rig.n_vertices)  # summed dropoff per vertex
-        vals = vals / np.maximum(total[rows], 1.0)  # overlapping wires blend
+        vals = vals / np.maximum(total[rows], 1.0) * muscle_mask(rig)[rows]  # overlapping wires blend
         spread = sp.csr_matrix((vals, (rows, cols)), shape=(rig.n_vertices, k_total))
         self.spread = sp.kron(spread, sp.identity(3), format="csr")  # (3n, 3K)
         self.chain = Chain(rig, skull=skull, creases=creases)

@@ -18,7 +18,7 @@ TOOTH = (0.93, 0.91, 0.83)
 TONGUE = (0.78, 0.38, 0.38)
 MOUTH = (0.45, 0.18, 0.18)
 IRIS_ANGLE = 0.52  # angular radius of the iris on the eyeball, rad
-CORNEA_BULGE = 0.07  # how far the cornea bulges out of the eyeball sphere, relative to its radius
+CORNEA_BULGE = 0.05  # how far the cornea bulges out of the eyeball sphere, relative to its radius
 PUPIL_ANGLE = 0.19
 
 
@@ -75,7 +75,7 @@ def _lathe(profile_angles: np.ndarray, radius_of, cols: int) -> tuple[np.ndarray
 def eyeball_profile(theta: np.ndarray) -> np.ndarray:
     """The eyeball's radius relative to its sphere at angle ``theta`` (rad) from the gaze axis.
 
-    1 everywhere except over the iris, where the cornea bulges by up to 7 %.
+    1 everywhere except over the iris, where the cornea bulges by up to 5 %.
     """
     theta = np.abs(np.asarray(theta, dtype=np.float64))
     bulge = CORNEA_BULGE * np.clip(np.cos(np.minimum(theta, np.pi) / IRIS_ANGLE * np.pi / 2), 0, None) ** 2

@@ -35,7 +35,7 @@ from mimetic.head.topology import (
 )
 
 EYE_RADIUS = 1.2  # eyeball radius, cm (scaled by eye_size)
-LID_GAP = 0.08  # lid thickness over the eyeball at the margin, cm
+LID_GAP = 0.12  # lid thickness over the eyeball at the margin, cm
 NASION_Y = 0.9  # chart Y of the nasion
 SUBNASALE_DROP = 5.8  # nasion-to-subnasale chart length at nose_length = 1
 SUBNASALE_Y0 = NASION_Y - SUBNASALE_DROP  # canonical chart Y of the subnasale

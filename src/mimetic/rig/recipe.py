@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from mimetic.head.model import Head
+from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.head.shape import skin_geometry
 from mimetic.head.topology import build_topology
@@ -24,6 +24,7 @@ from mimetic.mesh.geometry import closest_on_polyline
 from mimetic.mesh.model import SurfacePoint
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
 
+EYELID_CLOSED_RAD = 0.75  # upper-lid rotation that closes the eye (larger than any head's lid opening)
 BONES = (
     "head",
     "jaw",
@@ -259,9 +260,20 @@ def _muscles(head: Head, places: _Places) -> list[Muscle]:
     return muscles
 
 
+@lru_cache(maxsize=8)
+def _canonical_head(resolution: int) -> Head:
+    return make_head(HeadParams(), resolution)
+
+
 def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float) -> list[Wire]:
     v, f = head.mesh.vertices, head.mesh.faces
     skin = np.unique(np.concatenate([f[head.mesh.parts[p]].ravel() for p in ("skin", "mouth")]))
+    # deformation sets are vertex sets of the reference topology: found on the default head
+    canonical = _canonical_head(head.resolution)
+    rest = canonical.mesh.vertices
+    canonical_scale = float(
+        rest[: canonical.n_skin, 1].max() - canonical.landmark_positions(["menton"])[0][1]
+    )
     wires = []
     specs = [(f"{n}_{s}", s, spec) for s in ("L", "R") for n, spec in _WIRES_L.items()]
     specs += [(n, "C", spec) for n, spec in _WIRES_C.items()]
@@ -284,8 +296,8 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float
                     dist = np.linalg.norm(pos - ins, axis=1)
                     weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.5 * length)) ** 2)), 6)
         # deformation set: the skin within the dropoff, without the lip this wire must not move
-        _, _, dist = closest_on_polyline(v[skin], pos)
-        members = skin[dist < dropoff * scale]
+        _, _, dist = closest_on_polyline(rest[skin], np.array([p.position(rest, f) for p in pts]))
+        members = skin[dist < dropoff * canonical_scale]
         members = np.setdiff1d(
             members, np.concatenate([head.regions[r] for r in exclude] or [np.zeros(0, int)])
         )
@@ -357,17 +369,24 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     ):
         jaw[np.unique(head.mesh.faces[parts[part]])] = value
     W[:, BONES.index("jaw")] = jaw
-    # eyelids: the margin follows the lid bone fully, fading out by u = 0.45
+    # eyelids: each column of the lid has the weight that makes a rotation of EYELID_CLOSED_RAD bring
+    # its margin to the opposite lid's (so a blink closes the whole fissure, the canthi stay put and
+    # the same channel value closes every head), fading out from the margin (u = 0) to u = 0.45
     for side in "LR":
         rings = topo.eye_L if side == "L" else topo.eye_R
+        centre = head.eye_centres[0 if side == "L" else 1]
+        margin = v[rings.index[1]] - centre  # (per_ring, 3)
+        elevation = np.arctan2(margin[:, 1], margin[:, 2])  # about the x-axis
+        per_ring = len(elevation)
+        opposite = elevation[(per_ring - np.arange(per_ring)) % per_ring]  # the same column, other lid
+        t = topo.ring_uv[rings.index[1], 1]
+        share = np.clip(np.abs(elevation - opposite) / EYELID_CLOSED_RAD, 0.0, 1.0)
+        up, down = np.sin(t) > 1e-9, np.sin(t) < -1e-9
         for k, u in enumerate(rings.u):
             ids = rings.index[k]
-            w = 1.0 - _smoothstep(0.0, 0.45, np.array(max(u, 0.0)))
-            t = topo.ring_uv[ids, 1]
-            up = np.sin(t) > 1e-9
-            down = np.sin(t) < -1e-9
-            W[ids[up], BONES.index(f"eyelid_upper_{side}")] = w * np.sin(t[up]) ** 0.5
-            W[ids[down], BONES.index(f"eyelid_lower_{side}")] = w * (-np.sin(t[down])) ** 0.5
+            w = (1.0 - _smoothstep(0.0, 0.45, np.array(max(u, 0.0)))) * share
+            W[ids[up], BONES.index(f"eyelid_upper_{side}")] = w[up]
+            W[ids[down], BONES.index(f"eyelid_lower_{side}")] = w[down]
         eye = np.unique(head.mesh.faces[parts[f"eye_{side}"]])
         W[eye] = 0.0
         W[eye, BONES.index(f"eye_{side}")] = 1.0
@@ -382,6 +401,8 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
 
 
 def _channels(muscles: list[Muscle]) -> list[Channel]:
+    """The pivot's channels: muscles in [0, 1], then jaw, eyelids (``eyelid_upper`` at its maximum,
+    EYELID_CLOSED_RAD, closes the eye on every head), gaze and head, with their units."""
     channels = [Channel(m.name, 0.0, 1.0, group="muscles") for m in muscles]
     channels += [
         Channel("jaw_open", -0.05, 0.45, unit="rad", group="jaw"),
@@ -390,7 +411,7 @@ def _channels(muscles: list[Muscle]) -> list[Channel]:
     ]
     for side in "LR":
         channels += [
-            Channel(f"eyelid_upper_{side}", -0.25, 0.8, unit="rad", group="eyelids"),
+            Channel(f"eyelid_upper_{side}", -0.3, EYELID_CLOSED_RAD, unit="rad", group="eyelids"),
             Channel(f"eyelid_lower_{side}", -0.2, 0.3, unit="rad", group="eyelids"),
         ]
     channels += [
