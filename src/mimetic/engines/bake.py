@@ -1,5 +1,8 @@
 """Bake any engine into a linear ``Basis`` (neutral + per-channel deltas + a few correctives).
 
+Whole-head rotation (``head_yaw``, ``head_pitch``, ``head_roll``) is a rigid motion that a basis
+cannot represent; its deltas are zero, and exports keep it as the head bone.
+
 For a channel with range [lo, hi]: if lo < 0 < hi and the range is symmetric enough (gaze, head
 rotation), its delta is the central secant ``(deform(+x) - deform(-x)) / 2x`` at
 ``x = min(-lo, hi)``; otherwise the secant to its maximum, ``(deform(hi) - neutral) / hi``. So a
@@ -61,13 +64,18 @@ def channel_extent(lo: float, hi: float) -> tuple[float, bool]:
     return (hi if hi > 0 else lo), False
 
 
+RIGID = ("head_yaw", "head_pitch", "head_roll")  # whole-head rotation: a bone in exports, not in a basis
+
+
 def random_poses(engine: Engine, count: int, rng: np.random.Generator, density: float = 0.3) -> np.ndarray:
-    """Random poses (count, c): each channel active with probability ``density``, uniform in range."""
+    """Random poses (count, c): each channel active with probability ``density``, uniform in range;
+    the rigid head rotation channels stay at 0."""
     lo = np.array([c.minimum for c in engine.rig.channels])
     hi = np.array([c.maximum for c in engine.rig.channels])
     muscle = np.array([c.unit == "activation" for c in engine.rig.channels])
     values = rng.uniform(np.where(muscle, 0.0, lo), hi, size=(count, len(lo)))
     values *= rng.random((count, len(lo))) < density
+    values[:, [j for j, ch in enumerate(engine.rig.channels) if ch.name in RIGID]] = 0.0
     return values
 
 
@@ -90,6 +98,10 @@ def bake(
     steps = c + samples
     done = 0
     for j, ch in enumerate(rig.channels):
+        if ch.name in RIGID:
+            amplitude[j] = 1.0
+            single[j] = neutral
+            continue
         x, central = channel_extent(ch.minimum, ch.maximum)
         amplitude[j] = x
         plus = zero.copy()

@@ -1,0 +1,79 @@
+"""Baking engines to a linear basis: exact at rest and at each channel's extreme, bounded error."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+import pytest
+
+from mimetic.engines import ENGINES, make_engine
+from mimetic.engines.bake import bake, channel_extent, random_poses
+from mimetic.engines.basis import evaluate_basis
+from mimetic.testing import small_rig
+
+
+@cache
+def baked(name: str, seed: int | None = None):
+    engine = make_engine(small_rig(seed), name)
+    return engine, bake(engine, correctives=12, samples=16)
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_bake_reproduces_rest_and_each_channel_at_its_extreme(name):
+    engine, result = baked(name)
+    basis, rig = result.basis, engine.rig
+    assert basis.channels == rig.channel_names
+    assert basis.neutral.shape == rig.mesh.vertices.shape and basis.deltas.shape == (
+        len(rig.channels),
+        rig.n_vertices,
+        3,
+    )
+    zero = np.zeros(len(rig.channels))
+    np.testing.assert_array_equal(evaluate_basis(basis, zero), rig.mesh.vertices)
+    for j, ch in enumerate(rig.channels):
+        if not ch.name.startswith(("zygomatic_major", "frontalis", "mentalis", "eyelid_upper", "jaw_open")):
+            continue
+        x, central = channel_extent(ch.minimum, ch.maximum)
+        values = zero.copy()
+        values[j] = x
+        if central:
+            continue  # a central secant is exact only for the odd part; checked by the error bound
+        np.testing.assert_allclose(
+            evaluate_basis(basis, values), engine.deform(values), atol=1e-9, err_msg=ch.name
+        )
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_bake_error_is_within_the_reported_bound(name):
+    engine, result = baked(name)
+    report = result.report
+    assert report.samples == 16
+    assert 0 <= report.max_error <= report.max_error_linear + 1e-12  # correctives never hurt the worst case
+    assert report.rms_error <= report.max_error
+    assert report.max_error < 0.1 * engine.rig.scale
+    # fresh random poses (another seed) stay within twice the reported worst error
+    poses = random_poses(engine, 8, np.random.default_rng(123))
+    worst = max(
+        np.linalg.norm(evaluate_basis(result.basis, p) - engine.deform(p), axis=1).max() for p in poses
+    )
+    assert worst <= 2.0 * report.max_error + 1e-9
+    assert any("bake error" in line for line in report.lines())
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_bake_correctives_make_their_pairs_exact(name):
+    engine, result = baked(name)
+    rig, basis = engine.rig, result.basis
+    assert 0 < len(basis.correctives) <= 12
+    index = {n: j for j, n in enumerate(rig.channel_names)}
+    for corrective in basis.correctives:
+        values = np.zeros(len(rig.channels))
+        for channel in corrective.channels:
+            ch = rig.channel(channel)
+            values[index[channel]] = channel_extent(ch.minimum, ch.maximum)[0]
+        if any(
+            channel_extent(rig.channel(c).minimum, rig.channel(c).maximum)[1] for c in corrective.channels
+        ):
+            continue  # central secants are exact only for the odd part
+        np.testing.assert_allclose(evaluate_basis(basis, values), engine.deform(values), atol=1e-9)
