@@ -3,7 +3,11 @@
 Writes, into one folder: the default head as ``head.glb``, its rig ``default.mrig``, eight
 random heads with their rigs (``heads/seed_N.glb``, ``rigs/seed_N.mrig``), the default head from
 three angles (``default_views.png``) and a contact sheet of all nine heads with their muscles
-drawn (``heads_muscles.png``).
+drawn (``heads_muscles.png``). For the default head it also writes the muscle sheets of both
+engines (``muscles_wire.png``, ``muscles_vector.png``: every muscle at full contraction), the
+expression sheets (``expressions.png`` with the wire engine, ``expressions_vector.png``) and each
+library expression as a posed mesh and a face render (``expressions/NAME.obj``, ``NAME.png``,
+wire engine).
 """
 
 from __future__ import annotations
@@ -12,14 +16,18 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from mimetic.animate.expressions import expression_pose, load_library
+from mimetic.engines import Engine, make_engine
 from mimetic.head.model import DEFAULT_RESOLUTION, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.io import save_mesh
 from mimetic.rig.format import save_rig
+from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
 from mimetic.view.muscles import render_rig
 from mimetic.view.render import Renderer
 from mimetic.view.sheet import contact_sheet, save_png
+from mimetic.view.sheets import expression_sheet, muscle_sheet, render_pose
 
 Progress = Callable[[int, int], None]
 
@@ -46,12 +54,14 @@ def run_demo(
     files: list[Path] = []
     tiles = []
     jobs: list[int | None] = [None, *seeds]
-    total = len(jobs) + 1
+    total = len(jobs) + 2
+    default_rig: Rig | None = None
     for done, seed in enumerate(jobs):
         params = HeadParams() if seed is None else HeadParams.random(seed)
         head = make_head(params, resolution)
         rig = build_rig(head)
         if seed is None:
+            default_rig = rig
             files.append(save_mesh(head.mesh, out / "head.glb"))
             files.append(save_rig(rig, out / "default.mrig"))
             views = [
@@ -71,6 +81,41 @@ def run_demo(
         if progress:
             progress(done + 1, total)
     files.append(save_png(contact_sheet(tiles, columns=6), out / "heads_muscles.png"))
+    assert default_rig is not None  # jobs start with the default head
+    engines = {name: make_engine(default_rig, name) for name in ("wire", "vector")}
+    files += _action_sheets(default_rig, engines, out, renderer)
+    if progress:
+        progress(total - 1, total)
+    files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer)
     if progress:
         progress(total, total)
     return DemoResult(out, tuple(files))
+
+
+def _action_sheets(
+    rig: Rig, engines: dict[str, Engine], out: Path, renderer: Renderer, tile: int = 256
+) -> list[Path]:
+    """The muscle sheet and the expression sheet of each engine (the wire one is ``expressions.png``)."""
+    files = []
+    for name, engine in engines.items():
+        sheet = muscle_sheet(rig, engine, size=tile, renderer=renderer)
+        files.append(save_png(sheet, out / f"muscles_{name}.png"))
+    library = load_library()
+    for name, engine in engines.items():
+        sheet = expression_sheet(rig, engine, library, size=tile, renderer=renderer)
+        files.append(
+            save_png(sheet, out / ("expressions.png" if name == "wire" else f"expressions_{name}.png"))
+        )
+    return files
+
+
+def _expressions(rig: Rig, engine: Engine, folder: Path, size: int, renderer: Renderer) -> list[Path]:
+    """Each library expression posed by ``engine``: ``NAME.obj`` (all parts) and a front ``NAME.png``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    files = []
+    for name in load_library().names:
+        values = expression_pose(rig, name)
+        files.append(save_mesh(rig.mesh.with_vertices(engine.deform(values)), folder / f"{name}.obj"))
+        image = render_pose(rig, engine, values, view="front", size=size, renderer=renderer)
+        files.append(save_png(image, folder / f"{name}.png"))
+    return files

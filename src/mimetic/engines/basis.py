@@ -12,13 +12,15 @@ whose activation is the product of its two channels.
 Compact layouts
 ---------------
 Both layouts keep the caller's vertex order. Reordering vertices would make every support one
-contiguous range, but putting a 13k-vertex result back in order costs a gather of ~50 µs here,
-more than a whole frame; so the sparsity is taken in mesh order instead:
+contiguous range, but putting a 13k-vertex result back in order costs a gather of 20-50 µs here,
+as much as a whole frame; so the sparsity is taken in mesh order instead. From Python, each
+BLAS call costs ~0.6 µs, as much as streaming ~6k floats from cache, so both layouts trade a
+few padding zeros for fewer calls:
 
 * **ranges**, for single frames with few active channels: per term, the vertex ranges of its
-  support, gaps shorter than ``RANGE_GAP_VERTICES`` filled with zeros (a BLAS call costs as much
-  as streaming ~8k floats). A frame copies the neutral, then calls one BLAS ``axpy`` per range of
-  each non-zero term; zero terms cost nothing.
+  support, gaps shorter than ``RANGE_GAP_VERTICES`` filled with zeros, one array for all terms.
+  A frame copies the neutral, then calls one BLAS ``axpy`` per range of each non-zero term;
+  terms at zero cost nothing.
 * **blocks**, for batches and for frames with many active channels: the vertex order cut into
   contiguous blocks by dynamic programming over the support signatures (cost per block
   ``BLOCK_CALL_ELEMENTS + 3 · vertices · (terms + 1)``). Block b stores
@@ -26,10 +28,12 @@ more than a whole frame; so the sparsity is taken in mesh order instead:
   GEMM per block, ``A[:, terms_b] @ W_b``, written straight into the output (no neutral pass),
   and a frame is one GEMV per block.
 
-``evaluate`` picks the cheaper layout for each frame from the cost model below. ``float16``
-storage halves the bytes of the deltas (the neutral stays float32); it is converted on the fly
-with integer operations (float16 bits shifted into float32, the exponent bias folded into the
-activation), because numpy's own float16 cast is not vectorised (≈ 2 ns per value here).
+``evaluate`` picks the cheaper layout for each frame from a cost model (``CALL_US``,
+``ELEMENT_US``); ``bytes_read`` says what a frame reads. ``float16`` storage halves the bytes of
+the deltas (the neutral stays float32). It is unpacked on the fly with two integer operations
+(float16 bits shifted into place in a float32, the exponent bias folded into the activation),
+because numpy's own float16 cast is not vectorised (~2 ns per value here); even so it is slower
+than float32 on one frame, and worth it only where memory is short.
 
 Exactness contract
 ------------------
@@ -65,15 +69,17 @@ log = logging.getLogger(__name__)
 
 Method = Literal["auto", "ranges", "blocks"]
 
-RANGE_GAP_VERTICES = 2048
-"""Gaps in a term's support shorter than this are stored as zeros, so one BLAS call covers both sides."""
+RANGE_GAP_VERTICES = 512
+"""Gaps in a term's support shorter than this are stored as zeros, so one BLAS call covers both sides
+(fastest of 128-2048 on the generated head's baked and synthetic bases)."""
 
 RANGE_MAX_ELEMENTS = 10_000
 """Longer ranges are split: OpenBLAS runs axpy on one thread up to 10,000 elements. One frame is too
 small to gain from a second thread, and on a busy machine the hand-off can cost milliseconds."""
 
-BLOCK_CALL_ELEMENTS = 8_000
-"""Cost of one more block in the partition, in stored elements (a BLAS call ≈ streaming 8k floats)."""
+BLOCK_CALL_ELEMENTS = 32_000
+"""Cost of one more block in the partition, in stored elements: fewer, larger GEMMs suit batches
+(OpenBLAS synchronises its threads once per call); a frame costs about the same for 8k-64k."""
 
 BLOCK_GRAIN_VERTICES = 16
 """Blocks start at multiples of this many vertices (keeps the partition search fast)."""
@@ -84,8 +90,8 @@ BLOCK_MAX_VERTICES = 4_096
 BATCH_CHUNK_FRAMES = 1_024
 """Frames evaluated together by ``evaluate_batch`` (bounds the gathered activations)."""
 
-# Cost model for choosing a layout per frame (µs, measured on a 2-core EPYC; speed only).
-CALL_US = 0.7  # one BLAS call from Python
+# Cost model for choosing a layout per frame (µs, measured on a 2-core EPYC; affects speed only).
+CALL_US = 0.6  # one BLAS call from Python
 ELEMENT_US = {np.dtype(np.float32): 9e-5, np.dtype(np.float16): 5e-4}  # per stored element read
 CONVERT_CALLS = {np.dtype(np.float32): 0, np.dtype(np.float16): 2}  # numpy calls to unpack float16
 
@@ -407,7 +413,9 @@ class CompactBasis:
     # ---- construction
 
     @classmethod
-    def build(cls, basis: Basis, *, dtype: type | np.dtype = np.float32) -> CompactBasis:
+    def build(
+        cls, basis: Basis, *, dtype: type | np.dtype = np.float32, drop_below: float = 0.0
+    ) -> CompactBasis:
         """Prepare compact evaluation of ``basis``, with deltas stored as ``dtype``.
 
         Parameters
@@ -416,12 +424,19 @@ class CompactBasis:
         dtype : np.float32 or np.float16
             float16 halves the bytes of the deltas (relative error ≤ 2^-12 of each term's
             largest component) but costs integer unpacking on every evaluation.
+        drop_below : float
+            A vertex leaves a term's support when all three components of its delta are at most
+            this (rig units). 0 keeps every non-zero value; a small value keeps engines whose
+            deltas are dense with numerical dust (e.g. FEM) compact. Dropped values count in
+            ``compaction_error`` and ``error_bound``.
         """
         if not isinstance(basis, Basis):
             raise TypeError(f"CompactBasis.build needs a Basis; got {type(basis).__name__}")
         dtype = np.dtype(dtype)
         if dtype not in ELEMENT_US:
             raise ValueError(f"dtype must be float32 or float16; got {dtype}")
+        if not (math.isfinite(drop_below) and drop_below >= 0):
+            raise ValueError(f"drop_below must be a finite number ≥ 0 (rig units); got {drop_below}")
         self = object.__new__(cls)
         self.channels = basis.channels
         self.n_vertices = n = basis.n_vertices
@@ -436,14 +451,17 @@ class CompactBasis:
         self._neutral = np.ascontiguousarray(basis.neutral, dtype=np.float32)
         self._neutral.setflags(write=False)
         self._neutral_flat = self._neutral.reshape(-1)
-        support = np.any(deltas.reshape(T, n, 3) != 0, axis=2)  # (T, n)
+        support = np.any(np.abs(deltas.reshape(T, n, 3)) > drop_below, axis=2)  # (T, n)
+        kept = np.repeat(support, 3, axis=1)  # (T, 3n)
         if dtype == np.float16:
-            stored_terms, scales = zip(*(_f16_storage(d) for d in deltas), strict=True)
+            stored_terms, scales = zip(
+                *(_f16_storage(d * k) for d, k in zip(deltas, kept, strict=True)), strict=True
+            )
             stored = np.stack(stored_terms)  # (T, 3n) float16
             self._scale = np.array(scales) * F16_BIAS  # folds into each term's activation
             exact = stored.astype(np.float64) * np.array(scales)[:, None]
         else:
-            stored = deltas.astype(np.float32)
+            stored = np.where(kept, deltas, 0.0).astype(np.float32)
             self._scale = np.ones(T)
             exact = stored.astype(np.float64)
         self._peak = np.abs(exact).max(axis=1, initial=0.0)  # (T,) M_j
@@ -709,6 +727,16 @@ class CompactBasis:
             return int(self._neutral.nbytes + deltas)
         neutral = 0 if self.dtype == np.float32 else self._neutral.nbytes  # float32 blocks hold it
         return int(neutral + sum(b.matrix.nbytes for b in self._blocks))
+
+    @property
+    def n_ranges(self) -> int:
+        """Stored ranges over all terms (one BLAS axpy each when the term is active)."""
+        return sum(len(plan) for plan in self._range_plans)
+
+    @property
+    def n_blocks(self) -> int:
+        """Vertex blocks (one GEMV per frame or GEMM per batch each)."""
+        return len(self._blocks)
 
     @property
     def nbytes(self) -> int:

@@ -19,6 +19,7 @@ from mimetic.rig.model import Rig
 
 SKIN_PARTS = ("skin", "mouth")  # the deformable surface; other parts only follow bones
 SKULL_CLEARANCE_REL = 0.0  # the skull surface lies on the rest forehead (as the thesis lofts it)
+LID_RIGID_WEIGHT = 0.35  # eyelid bone weight from which muscles leave a vertex to the lid
 SCULPTOR_MARGIN_REL = 0.0002  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
 
 
@@ -48,15 +49,30 @@ def deformable_vertices(rig: Rig) -> np.ndarray:
 
 
 def muscle_mask(rig: Rig) -> np.ndarray:
-    """How much (n,) of each vertex's motion the muscles may drive: 1 minus its eyelid bone weight.
+    """How much (n,) of each vertex's motion the muscles may drive, from its eyelid bone weight.
 
-    The lids are bones (as in the thesis); skin fully bound to a lid bone follows the lid only, and
-    the lid's blend into the surrounding skin blends the two, so nothing tears at the lid border.
+    The lids are bones (as in the thesis): skin bound to a lid bone by LID_RIGID_WEIGHT or more
+    follows the lid only, and the lid's blend into the surrounding skin blends the two, so nothing
+    tears at the lid border and no muscle drags a closed lid into the eyeball.
     """
     lids = [rig.bone_index(b) for b in rig.bone_names if b.startswith("eyelid_")]
     if not lids:
         return np.ones(rig.n_vertices)
-    return 1.0 - np.asarray(rig.skin_weights[:, lids].sum(axis=1)).ravel()
+    lid = np.asarray(rig.skin_weights[:, lids].sum(axis=1)).ravel()
+    return np.clip(1.0 - lid / LID_RIGID_WEIGHT, 0.0, 1.0)
+
+
+def lip_contact_pairs(rig: Rig) -> np.ndarray:
+    """Pairs (k, 2) of (upper lip, lower lip) vertices that coincide at rest: the lips' contact line."""
+    upper, lower = rig.regions.get("upper_lip"), rig.regions.get("lower_lip")
+    if upper is None or lower is None or not len(upper) or not len(lower):
+        return np.zeros((0, 2), np.int64)
+    from scipy.spatial import cKDTree
+
+    v = rig.mesh.vertices
+    dist, nearest = cKDTree(v[lower]).query(v[upper])
+    touching = dist < 1e-9 * rig.scale
+    return np.column_stack([upper[touching], lower[nearest[touching]]]).astype(np.int64)
 
 
 def lip_mask(rig: Rig, insertion_vertex_point) -> np.ndarray:
@@ -165,6 +181,7 @@ class Chain:
         self.crease_channels = np.array([rig.channel_index(c) for c in folds], dtype=np.int64)
         self.creases = sp.csr_matrix(np.array([d.ravel() for d in folds.values()]).reshape(len(folds), -1))
         self.weights = rig.skin_weights.tocsc()
+        self.lip_pairs = lip_contact_pairs(rig)
         self.skull_ids = np.asarray(rig.regions.get("forehead", np.zeros(0, np.int64)))
         self.skull = None
         if skull and len(self.skull_ids) > 10:
@@ -195,8 +212,17 @@ class Chain:
         return dist, limit
 
     def apply(self, deformed: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """Skull push (+Z onto the rest forehead), creases, skinning, lid sculptors; (n, 3) -> (n, 3)."""
+        """Lip contact, skull push (+Z onto the rest forehead), creases, skinning, lid sculptors.
+
+        ``deformed`` (n, 3) is the rest skin moved by the muscles; returns (n, 3).
+        """
         v = deformed.copy()
+        if len(self.lip_pairs):  # lips meet but never cross: a crossed pair is pressed together
+            upper, lower = v[self.lip_pairs[:, 0]], v[self.lip_pairs[:, 1]]
+            crossed = upper[:, 1] < lower[:, 1]
+            mid = 0.5 * (upper[crossed, 1] + lower[crossed, 1])
+            v[self.lip_pairs[crossed, 0], 1] = mid
+            v[self.lip_pairs[crossed, 1], 1] = mid
         if self.skull is not None:
             p = v[self.skull_ids]
             z = self.skull(p[:, 0], p[:, 1])

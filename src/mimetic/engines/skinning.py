@@ -31,7 +31,7 @@ LID_FOLLOWS_GAZE = (0.5, 0.2)  # upper, lower lid rotation per radian of gaze pi
 # activation, as a fraction of the upper lid's full closing angle (the eyelid_upper channel's maximum)
 LID_MUSCLES = {
     "levator_palpebrae": (-0.45, 0.0),  # lifts the upper lid
-    "orbicularis_oculi": (0.95, 0.35),  # the sphincter closes both lids
+    "orbicularis_oculi": (1.0, 0.0),  # the sphincter closes the eye (the lower lid meets it)
     "orbicularis_oculi_outer": (0.15, 0.25),  # squint
 }
 

@@ -12,7 +12,7 @@ muscle is proportional to its activation. Kernels (for unit activation, lengths 
   falloff ``cos(pi/2 * l/w)`` with the distance l from the axis and w = 2 width_rel * scale.
 * **sphincter**: centre c, semi-axes from the insertion (major) and width_rel (minor) in the face
   plane; elliptical radius rho. Skin inside rho < 1 is drawn toward the centre in the face plane
-  by ``K_s rho``-scaled motion (a "string bag") and pushed forward (+Z) by a quarter of that;
+  by ``K_s rho``-scaled motion (a "string bag") and pushed forward (+Z) by PUCKER of that;
   it falls off with a cosine to 0 at rho = falloff_end_rel. Around an eye only the orbital ring
   (rho > 0.25) squeezes: the lids themselves close through their bones.
 * **sheet**: parallel fibres along the axis: motion toward the origin along the axis, with the
@@ -36,6 +36,7 @@ from mimetic.rig.model import Rig
 
 STRENGTH = 0.22  # K: linear and sheet motion at full activation, fraction of muscle length
 SPHINCTER_STRENGTH = 0.35  # K_s: fraction of the distance to the centre at full activation
+PUCKER = 0.6  # forward push of squeezed tissue, relative to its motion toward the centre
 SATURATION_REL = 0.1  # per-vertex displacement soft limit, fraction of the head height
 FORWARD = np.array([0.0, 0.0, 1.0])
 
@@ -74,7 +75,7 @@ def muscle_displacement(rig: Rig, name: str, ids: np.ndarray) -> np.ndarray:
             fall *= np.clip((rho - 0.25) / 0.3, 0.0, 1.0) ** 2
         in_plane = rel - np.outer(rel @ FORWARD, FORWARD)
         squeeze = -SPHINCTER_STRENGTH * in_plane
-        push = 0.25 * np.linalg.norm(squeeze, axis=1, keepdims=True) * FORWARD
+        push = PUCKER * np.linalg.norm(squeeze, axis=1, keepdims=True) * FORWARD
         return (squeeze + push) * fall[:, None]
     axis = (frame.insertion - frame.attachment) / frame.length
     rel = p - frame.attachment

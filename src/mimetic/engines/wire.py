@@ -6,7 +6,7 @@ For one wire with control points (CVs) ``c0`` (k, 3) on the rest skin:
    (origin -> insertion); at full contraction the scale is ``1 - CONTRACTION`` (the reversed
    mentalis: ``1 + CONTRACTION``), so the locator of CV k parented to the joint sits at
    ``c0_k + dL_k`` with ``dL_k = -CONTRACTION ((c0_k - O) . a) a``. A sphincter scales about its
-   centre in the face plane instead, and pushes forward (+Z) by a quarter of that (a pucker).
+   centre in the face plane instead, and pushes forward (+Z) by PUCKER of that (a pucker).
 2. Each CV's cluster is point-constrained, with normalised weights, to one locator per affecting
    muscle plus a rest locator: ``dc_k = sum_j w_jk a_j dL_jk / (w0_k + sum_j w_jk a_j)``. The
    constraint weight of a muscle's locator is keyed to its activation ``a_j`` (a set-driven key),
@@ -37,6 +37,7 @@ from mimetic.rig.model import Rig, Wire
 
 CONTRACTION = 0.25  # joint scale reduction at full activation (s = 1 - 0.25)
 SPHINCTER_CONTRACTION = 0.35  # scale reduction about a sphincter's centre at full activation
+PUCKER = 0.6  # forward push of squeezed tissue, relative to its motion toward the centre
 
 
 def dropoff(x: np.ndarray) -> np.ndarray:
@@ -52,7 +53,7 @@ def locator_motion(rig: Rig, cv: np.ndarray, muscle: str) -> np.ndarray:
         rel = cv - frame.attachment
         rel[:, 2] = 0.0  # squeeze in the face plane, and bulge forward a quarter as much
         squeeze = -SPHINCTER_CONTRACTION * rel
-        return squeeze + 0.25 * np.linalg.norm(squeeze, axis=1, keepdims=True) * np.array([0.0, 0.0, 1.0])
+        return squeeze + PUCKER * np.linalg.norm(squeeze, axis=1, keepdims=True) * np.array([0.0, 0.0, 1.0])
     axis = (frame.insertion - frame.attachment) / frame.length
     along = (cv - frame.attachment) @ axis  # (k,)
     return (CONTRACTION if m.reversed else -CONTRACTION) * along[:, None] * axis

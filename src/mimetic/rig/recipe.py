@@ -294,7 +294,7 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float
                     weights[m.name] = near.astype(np.float64)
                 else:
                     dist = np.linalg.norm(pos - ins, axis=1)
-                    weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.5 * length)) ** 2)), 6)
+                    weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.3 * length)) ** 2)), 6)
         # deformation set: the skin within the dropoff, without the lip this wire must not move
         _, _, dist = closest_on_polyline(rest[skin], np.array([p.position(rest, f) for p in pts]))
         members = skin[dist < dropoff * canonical_scale]
@@ -371,7 +371,8 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     W[:, BONES.index("jaw")] = jaw
     # eyelids: each column of the lid has the weight that makes a rotation of EYELID_CLOSED_RAD bring
     # its margin to the opposite lid's (so a blink closes the whole fissure, the canthi stay put and
-    # the same channel value closes every head), fading out from the margin (u = 0) to u = 0.45
+    # the same channel value closes every head); the lid moves rigidly up to u = 0.2 and blends into
+    # the skin by u = 0.6, so its triangles never cut through the cornea
     for side in "LR":
         rings = topo.eye_L if side == "L" else topo.eye_R
         centre = head.eye_centres[0 if side == "L" else 1]
@@ -384,7 +385,7 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
         up, down = np.sin(t) > 1e-9, np.sin(t) < -1e-9
         for k, u in enumerate(rings.u):
             ids = rings.index[k]
-            w = (1.0 - _smoothstep(0.0, 0.45, np.array(max(u, 0.0)))) * share
+            w = (1.0 - _smoothstep(0.2, 0.6, np.array(max(u, 0.0)))) * share
             W[ids[up], BONES.index(f"eyelid_upper_{side}")] = w[up]
             W[ids[down], BONES.index(f"eyelid_lower_{side}")] = w[down]
         eye = np.unique(head.mesh.faces[parts[f"eye_{side}"]])
