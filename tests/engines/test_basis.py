@@ -391,31 +391,47 @@ def test_compact_corrective_acts_only_when_both_channels_are_nonzero(dtype):
         assert np.abs(part).max() > 10 * bound  # the corrective does act
 
 
-def test_compact_skips_channels_at_zero():
+def test_compact_plan_skips_channels_at_zero():
     compact = COMPACT[np.float32, False]
     neutral_bytes = compact.n_vertices * 3 * 4
+    zero = compact.plan(np.zeros(N_CHANNELS))
+    assert (zero.axpy_calls, zero.gemv_calls, zero.bytes_read) == (0, 0, neutral_bytes)  # the neutral only
     one = np.zeros(N_CHANNELS)
     one[5] = 0.3  # a regional channel
-    assert compact.choose_method(one) == "ranges"
-    assert compact.bytes_read(np.zeros(N_CHANNELS)) == neutral_bytes  # nothing but the neutral
-    assert neutral_bytes < compact.bytes_read(one) < compact.bytes_read(one, method="blocks")
-    assert compact.nbytes == compact.bytes_read(np.ones(N_CHANNELS))
+    sparse = compact.plan(one)
+    assert sparse.gemv_calls == 0 and sparse.axpy_calls >= 1
+    assert neutral_bytes < sparse.bytes_read < compact.plan(one, method="blocks").bytes_read
+    everything = compact.plan(np.ones(N_CHANNELS), method="blocks")
+    assert everything.gemv_calls == compact.n_blocks and everything.axpy_calls == 0
+    assert compact.nbytes == compact.plan(np.ones(N_CHANNELS)).bytes_read
+    assert compact.plan(np.ones(N_CHANNELS), method="ranges").axpy_calls == compact.n_ranges
+
+
+def test_compact_auto_uses_gemv_where_most_terms_are_active():
+    basis = regional_basis(9, n=3000, channels=40)
+    compact = CompactBasis.build(basis)
+    everything = np.ones(basis.n_channels)
+    dense, sparse = compact.plan(everything), compact.plan(np.eye(basis.n_channels)[3])
+    assert dense.gemv_calls >= 1
+    assert dense.gemv_calls + dense.axpy_calls < compact.plan(everything, method="ranges").axpy_calls
+    assert sparse.gemv_calls == 0  # one regional channel: axpys only
+    reference = evaluate_basis(basis, everything)
+    assert np.abs(compact.evaluate(everything) - reference).max() <= compact.error_bound(everything)
 
 
 def test_compact_float16_halves_the_bytes_of_the_deltas():
     float32, float16 = COMPACT[np.float32, False], COMPACT[np.float16, False]
     neutral_bytes = float32.n_vertices * 3 * 4  # float32 in both
-    a = random_activations(np.random.default_rng(6), active=0.5)
-    for method in METHODS:
-        deltas32 = float32.bytes_read(a, method=method) - neutral_bytes
-        deltas16 = float16.bytes_read(a, method=method) - neutral_bytes
-        assert deltas16 * 2 == deltas32
+    everything = np.ones(N_CHANNELS)
+    deltas32 = float32.plan(everything, method="blocks").bytes_read - neutral_bytes  # the neutral rows
+    deltas16 = float16.plan(everything, method="blocks").bytes_read - neutral_bytes
+    assert deltas16 * 2 == deltas32
     assert float16.stored_nbytes < float32.stored_nbytes
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
 def test_compact_is_correct_with_tiny_ranges_blocks_and_chunks(monkeypatch, dtype):
-    """Every range split in pieces of 7 elements, blocks of at most 2 grains, batches of 4 frames."""
+    """Ranges split in pieces of 7 elements, blocks of at most 2 grains, batches of 4 frames."""
     monkeypatch.setattr(basis_module, "RANGE_MAX_ELEMENTS", 7)
     monkeypatch.setattr(basis_module, "RANGE_GAP_VERTICES", 0)
     monkeypatch.setattr(basis_module, "BLOCK_MAX_VERTICES", 2 * basis_module.BLOCK_GRAIN_VERTICES)
@@ -427,8 +443,29 @@ def test_compact_is_correct_with_tiny_ranges_blocks_and_chunks(monkeypatch, dtyp
     bound = compact.error_bound(a)
     assert np.all(np.abs(compact.evaluate_batch(a) - reference).max(axis=(1, 2)) <= bound)
     for frame, ref, limit in zip(a, reference, bound, strict=True):
-        for method in METHODS:
+        for method in ("auto", *METHODS):
             assert np.abs(compact.evaluate(frame, method=method) - ref).max() <= limit
+    assert compact.n_blocks > 5
+
+
+def test_compact_drop_below_leaves_dust_out_and_accounts_for_it():
+    basis = SMALL_BASIS
+    dusty_deltas = basis.deltas + 1e-9 * np.random.default_rng(10).standard_normal(basis.deltas.shape)
+    dusty = Basis(basis.channels, basis.neutral, dusty_deltas)
+    exact, cleaned = CompactBasis.build(dusty), CompactBasis.build(dusty, drop_below=1e-8)
+    a = random_activations(np.random.default_rng(11), 6, active=0.3)
+    for frame in a:
+        assert (
+            cleaned.plan(frame, method="ranges").bytes_read <= exact.plan(frame, method="ranges").bytes_read
+        )
+    assert cleaned.stored_nbytes < exact.stored_nbytes  # the empty and one-vertex channels stay small
+    assert cleaned.compaction_error.storage >= 1e-9  # the dust it dropped
+    reference = evaluate_basis(dusty, a)
+    assert np.all(np.abs(cleaned.evaluate_batch(a) - reference).max(axis=(1, 2)) <= cleaned.error_bound(a))
+    for frame, ref in zip(a, reference, strict=True):
+        assert np.abs(cleaned.evaluate(frame, method="ranges") - ref).max() <= cleaned.error_bound(frame)
+    with pytest.raises(ValueError, match="drop_below must be a finite number"):
+        CompactBasis.build(basis, drop_below=-1.0)
 
 
 def test_compact_handles_a_basis_of_one_vertex_and_one_channel():
@@ -457,7 +494,7 @@ def test_compact_evaluate_rejects_bad_activations(activations, message):
     with pytest.raises(ActivationError, match=message):
         compact.evaluate(activations)
     with pytest.raises(ActivationError, match=message):
-        compact.bytes_read(activations)
+        compact.plan(activations)
 
 
 @pytest.mark.parametrize(
@@ -511,7 +548,7 @@ def test_compact_does_not_modify_its_inputs(dtype):
     compact.evaluate(list(a[1]))
     compact.evaluate_batch(a)
     compact.error_bound(a)
-    compact.bytes_read(a[2])
+    compact.plan(a[2])
     np.testing.assert_array_equal(a, before)
     for array, copy in zip(
         (basis.neutral, basis.deltas, basis.corrective_deltas), arrays_before, strict=True

@@ -11,29 +11,31 @@ whose activation is the product of its two channels.
 
 Compact layouts
 ---------------
-Both layouts keep the caller's vertex order. Reordering vertices would make every support one
-contiguous range, but putting a 13k-vertex result back in order costs a gather of 20-50 µs here,
-as much as a whole frame; so the sparsity is taken in mesh order instead. From Python, each
-BLAS call costs ~0.6 µs, as much as streaming ~6k floats from cache, so both layouts trade a
-few padding zeros for fewer calls:
+Both layouts keep the caller's vertex order. Reordering vertices would make supports contiguous,
+but putting a 13k-vertex result back in order costs 10-50 µs here, as much as a whole frame (and
+on the generated head a reordering found by a nearest-neighbour tour of the support signatures
+did not even cut the number of ranges), so the sparsity is taken in mesh order. From Python each
+BLAS call costs ~0.5 µs, as much as streaming thousands of floats from cache, so both layouts
+trade a few padding zeros for fewer calls:
 
-* **ranges**, for single frames with few active channels: per term, the vertex ranges of its
-  support, gaps shorter than ``RANGE_GAP_VERTICES`` filled with zeros, one array for all terms.
-  A frame copies the neutral, then calls one BLAS ``axpy`` per range of each non-zero term;
-  terms at zero cost nothing.
-* **blocks**, for batches and for frames with many active channels: the vertex order cut into
-  contiguous blocks by dynamic programming over the support signatures (cost per block
-  ``BLOCK_CALL_ELEMENTS + 3 · vertices · (terms + 1)``). Block b stores
-  ``[neutral; deltas of the terms touching b]`` as one (1 + k_b, 3 m_b) matrix, so a batch is one
-  GEMM per block, ``A[:, terms_b] @ W_b``, written straight into the output (no neutral pass),
-  and a frame is one GEMV per block.
+* **ranges** (term-major, one array): each term's support as vertex ranges, gaps shorter than
+  ``RANGE_GAP_VERTICES`` included, pieces of at most ``RANGE_MAX_ELEMENTS`` elements. A frame
+  copies the neutral, then makes one BLAS axpy per range of each non-zero term; terms at zero
+  cost nothing.
+* **blocks**: the vertex order cut into contiguous blocks by dynamic programming over the
+  support signatures (cost per block ``BLOCK_CALL_ELEMENTS + 3 · vertices · (terms + 1)``).
+  Block b stores ``[neutral; deltas of the terms touching b]`` as one (1 + k_b, 3 m_b) matrix
+  W_b. A batch is one GEMM per block, ``A[:, terms_b] @ W_b``, written straight into the output
+  (no neutral pass); a dense frame is one GEMV per block.
 
-``evaluate`` picks the cheaper layout for each frame from a cost model (``CALL_US``,
-``ELEMENT_US``); ``bytes_read`` says what a frame reads. ``float16`` storage halves the bytes of
-the deltas (the neutral stays float32). It is unpacked on the fly with two integer operations
-(float16 bits shifted into place in a float32, the exponent bias folded into the activation),
-because numpy's own float16 cast is not vectorised (~2 ns per value here); even so it is slower
-than float32 on one frame, and worth it only where memory is short.
+``evaluate(method="auto")`` takes the cheaper for each frame by a cost model (``AXPY_CALL_US``
+…): sparse frames run axpys, dense ones GEMVs. ``plan`` reports the calls and the bytes read.
+
+``float16`` storage halves the bytes of the deltas (the neutral stays float32). It is unpacked
+on the fly with two integer operations (float16 bits shifted into place in a float32, the
+exponent bias folded into the activation), because numpy's own float16 cast is not vectorised
+(~2 ns per value here); even so it is slower than float32 for one frame, and worth it only
+where memory is short.
 
 Exactness contract
 ------------------
@@ -90,10 +92,15 @@ BLOCK_MAX_VERTICES = 4_096
 BATCH_CHUNK_FRAMES = 1_024
 """Frames evaluated together by ``evaluate_batch`` (bounds the gathered activations)."""
 
-# Cost model for choosing a layout per frame (µs, measured on a 2-core EPYC; affects speed only).
-CALL_US = 0.6  # one BLAS call from Python
-ELEMENT_US = {np.dtype(np.float32): 9e-5, np.dtype(np.float16): 5e-4}  # per stored element read
-CONVERT_CALLS = {np.dtype(np.float32): 0, np.dtype(np.float16): 2}  # numpy calls to unpack float16
+# Cost model of one frame: least-squares fits of evaluation times on the 2-core EPYC of the
+# benchmarks (µs; it only decides between two correct methods, so it affects speed only).
+AXPY_CALL_US = 0.45  # one BLAS axpy from Python, loop included
+GEMV_CALL_US = 1.5  # one BLAS GEMV
+GEMV_FRAME_US = 3.0  # gathering the term activations for the GEMVs
+UNPACK_CALL_US = 0.8  # the two numpy calls unpacking float16 before an axpy or a GEMV
+AXPY_ELEMENT_US = {np.dtype(np.float32): 1.5e-4, np.dtype(np.float16): 5.5e-4}  # per element, from L3
+GEMV_ELEMENT_US = {np.dtype(np.float32): 1.1e-4, np.dtype(np.float16): 5e-4}
+COPY_ELEMENT_US = 1e-4  # copying the float32 neutral before the axpys
 
 U32 = 2.0**-24  # unit roundoff of float32
 U64 = 2.0**-53
@@ -303,12 +310,12 @@ class CompactionError:
     ----------
     absolute : float
         Max |compact - float64| over every unit activation (each channel at 1, the others at
-        0), through every evaluation path (single frame by ranges and by blocks, batch).
+        0), through every evaluation path (one frame by axpy and by GEMV, batches).
     relative : float
         ``absolute`` divided by the largest |delta| component of the basis.
     storage : float
         Max |stored - float64| over every delta and corrective component (the rounding to the
-        storage dtype alone).
+        storage dtype, and ``drop_below``).
     neutral : float
         Max |float32 neutral - neutral|.
     """
@@ -320,11 +327,20 @@ class CompactionError:
 
 
 @dataclass(frozen=True)
+class FramePlan:
+    """How ``evaluate`` computes one frame: BLAS calls made and bytes of stored data read."""
+
+    axpy_calls: int  # one per stored range of a non-zero term, in blocks left to axpy
+    gemv_calls: int  # one per block evaluated as a whole
+    bytes_read: int  # the float32 neutral (copied first unless every block is a GEMV) and the stored deltas
+
+
+@dataclass(frozen=True)
 class _Block:
     lo3: int  # first output element (3 × first vertex)
     hi3: int
-    xo: int  # first column of this block in the gathered activations
-    matrix: np.ndarray  # (1 + k, hi3 - lo3): [neutral; deltas] (float32) or (k, hi3 - lo3) deltas (float16)
+    xo: int  # first column of this block in the gathered term activations
+    matrix: np.ndarray  # (1 + k, hi3 - lo3) [neutral; deltas] float32, or (k, hi3 - lo3) deltas float16
 
 
 def _support_ranges(support: np.ndarray, gap: int) -> np.ndarray:
@@ -343,9 +359,9 @@ def _partition(support: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
     Dynamic programming over grains of BLOCK_GRAIN_VERTICES vertices; a grain's signature is the
     set of terms touching any of its vertices, kept as a Python int bit set.
     """
-    T, n = support.shape
+    n = support.shape[1]
     bounds = np.r_[np.arange(0, n, BLOCK_GRAIN_VERTICES), n]
-    grains = np.logical_or.reduceat(support, bounds[:-1], axis=1) if T else np.zeros((0, len(bounds) - 1))
+    grains = np.logical_or.reduceat(support, bounds[:-1], axis=1)  # (T, grains)
     packed = np.packbits(grains, axis=0, bitorder="little").T.copy()  # (grains, ceil(T / 8)) uint8
     signature = [int.from_bytes(row.tobytes(), "little") for row in packed]
     bounds_list = bounds.tolist()
@@ -391,9 +407,9 @@ def _unpack_f16(stored: np.ndarray, out: np.ndarray) -> np.ndarray:
 class CompactBasis:
     """Fast float32 evaluation of a ``Basis``: build once, evaluate many frames.
 
-    ``CompactBasis.build(basis, dtype=np.float32)`` prepares the layouts described in the module
-    docstring. ``evaluate`` (one frame) and ``evaluate_batch`` (many) return float32 vertices in
-    the basis's vertex order, within ``error_bound`` of ``evaluate_basis``.
+    ``CompactBasis.build(basis)`` prepares the two layouts described in the module docstring.
+    ``evaluate`` (one frame) and ``evaluate_batch`` (many) return float32 vertices in the basis's
+    vertex order, within ``error_bound`` of ``evaluate_basis``.
 
     Attributes
     ----------
@@ -403,8 +419,10 @@ class CompactBasis:
         Storage of the deltas: float32 or float16 (the neutral is always float32).
     compaction_error : CompactionError
         Errors reached on every unit activation (see ``CompactionError``).
+    n_blocks, n_ranges : int
+        Blocks of the layout, and stored ranges over all terms (one axpy each).
     stored_nbytes : int
-        Bytes held by both layouts.
+        Bytes held.
     """
 
     def __init__(self) -> None:
@@ -433,7 +451,7 @@ class CompactBasis:
         if not isinstance(basis, Basis):
             raise TypeError(f"CompactBasis.build needs a Basis; got {type(basis).__name__}")
         dtype = np.dtype(dtype)
-        if dtype not in ELEMENT_US:
+        if dtype not in AXPY_ELEMENT_US:
             raise ValueError(f"dtype must be float32 or float16; got {dtype}")
         if not (math.isfinite(drop_below) and drop_below >= 0):
             raise ValueError(f"drop_below must be a finite number ≥ 0 (rig units); got {drop_below}")
@@ -441,84 +459,83 @@ class CompactBasis:
         self.channels = basis.channels
         self.n_vertices = n = basis.n_vertices
         self.dtype = dtype
-        self._pairs = basis.corrective_pairs
-        self._pair_list = [tuple(p) for p in self._pairs.tolist()]
         self._n_channels = basis.n_channels
-        # 1. every term (channels, then correctives) with its support and storage
-        deltas = np.concatenate([basis.deltas, basis.corrective_deltas]).reshape(-1, n * 3)  # (T, 3n)
-        T = len(deltas)
-        self._n_terms = T
-        self._neutral = np.ascontiguousarray(basis.neutral, dtype=np.float32)
+        self._pairs = basis.corrective_pairs  # (k, 2)
+        self._pair_list = [tuple(p) for p in self._pairs.tolist()]
+        self._neutral = np.ascontiguousarray(basis.neutral, dtype=np.float32)  # (n, 3)
         self._neutral.setflags(write=False)
-        self._neutral_flat = self._neutral.reshape(-1)
+        self._neutral_flat = self._neutral.reshape(-1)  # (3n,)
+
+        # 1. every term (the channels, then the correctives): its support and its stored values
+        deltas = np.concatenate([basis.deltas, basis.corrective_deltas]).reshape(-1, 3 * n)  # (T, 3n)
+        T = self._n_terms = len(deltas)
         support = np.any(np.abs(deltas.reshape(T, n, 3)) > drop_below, axis=2)  # (T, n)
         kept = np.repeat(support, 3, axis=1)  # (T, 3n)
         if dtype == np.float16:
-            stored_terms, scales = zip(
+            stored, scales = zip(
                 *(_f16_storage(d * k) for d, k in zip(deltas, kept, strict=True)), strict=True
             )
-            stored = np.stack(stored_terms)  # (T, 3n) float16
-            self._scale = np.array(scales) * F16_BIAS  # folds into each term's activation
+            stored = np.stack(stored)  # (T, 3n) float16
+            self._scale = np.array(scales) * F16_BIAS  # folded into each term's activation
             exact = stored.astype(np.float64) * np.array(scales)[:, None]
         else:
-            stored = np.where(kept, deltas, 0.0).astype(np.float32)
+            stored = np.where(kept, deltas, 0.0).astype(np.float32)  # (T, 3n)
             self._scale = np.ones(T)
             exact = stored.astype(np.float64)
         self._peak = np.abs(exact).max(axis=1, initial=0.0)  # (T,) M_j
         self._storage_error = np.abs(exact - deltas).max(axis=1, initial=0.0)  # (T,) e_j
         self._neutral_error = float(np.abs(self._neutral - basis.neutral).max())
         self._neutral_peak = float(np.abs(self._neutral).max())
-        # 2. ranges layout: per term, its support ranges (mesh order), channel-major in one array
-        plans, chunks, pieces, offset = [], [], [], 0
+
+        # 2. ranges, for the axpys: each term's support ranges in mesh order, all in one array
+        unpack_us = UNPACK_CALL_US * (dtype == np.float16)
+        plans, pieces, offset = [], [], 0
+        self._term_axpy_us = []  # cost-model µs of all of a term's axpys
         for j in range(T):
-            ranges = _support_ranges(support[j], RANGE_GAP_VERTICES)
-            start = offset
             plan = []
-            for lo, hi in ranges.tolist():
-                pieces.append(stored[j, 3 * lo : 3 * hi])
-                for piece in range(3 * lo, 3 * hi, RANGE_MAX_ELEMENTS):  # (offx, m, offy)
-                    plan.append((offset + piece - 3 * lo, min(RANGE_MAX_ELEMENTS, 3 * hi - piece), piece))
-                offset += 3 * (hi - lo)
+            for start, stop in (3 * _support_ranges(support[j], RANGE_GAP_VERTICES)).tolist():
+                pieces.append(stored[j, start:stop])
+                for piece in range(start, stop, RANGE_MAX_ELEMENTS):  # (offx, m, offy)
+                    plan.append((offset + piece - start, min(RANGE_MAX_ELEMENTS, stop - piece), piece))
+                offset += stop - start
             plans.append(tuple(plan))
-            chunks.append((start, offset))
-        self._range_data = np.concatenate(pieces) if pieces else np.zeros(0, dtype)
+            elements = sum(m for _, m, _ in plan)
+            self._term_axpy_us.append(
+                len(plan) * (AXPY_CALL_US + unpack_us) + elements * AXPY_ELEMENT_US[dtype]
+            )
+        self._range_data = np.concatenate(pieces) if pieces else np.zeros(0, dtype)  # (Σ 3 · range,)
         self._range_data.setflags(write=False)
-        self._range_plans = tuple(plans)
-        self._range_chunks = tuple(chunks)
-        elements = np.array([hi - lo for lo, hi in chunks], np.float64)
-        calls = np.array([len(p) + CONVERT_CALLS[dtype] * bool(p) for p in plans], np.float64)
-        self._range_cost = (calls * CALL_US + elements * ELEMENT_US[dtype]).tolist()  # (T,) µs if active
-        self._range_elements = elements.astype(np.int64).tolist()
-        # 3. blocks layout: [neutral; deltas of the terms touching the block], one matrix per block
-        blocks, gather, xo = [], [], 0
+        self._plans = tuple(plans)
+        self._longest_range = max((m for plan in plans for _, m, _ in plan), default=0)
+
+        # 3. blocks, for the GEMVs and GEMMs: [neutral; deltas of the terms touching the block]
+        neutral_row = dtype == np.float32  # float16 blocks get the float32 neutral row when unpacked
+        blocks, gather, gemv_us = [], [], 0.0
         for lo, hi, terms in _partition(support):
             rows = stored[terms, 3 * lo : 3 * hi]  # (k_b, 3 m_b)
-            if dtype == np.float32:  # float16 blocks get the float32 neutral row when unpacked
+            if neutral_row:
                 rows = np.concatenate([self._neutral_flat[None, 3 * lo : 3 * hi], rows])
             matrix = np.ascontiguousarray(rows)
             matrix.setflags(write=False)
-            blocks.append(_Block(3 * lo, 3 * hi, xo, matrix))
-            gather += [0, *(terms + 1).tolist()]  # column 0 of the extended activations is 1
-            xo += len(terms) + 1
+            blocks.append(_Block(3 * lo, 3 * hi, len(gather), matrix))
+            gather += [0, *(terms + 1).tolist()]  # column 0 of the term activations is 1 (the neutral)
+            gemv_us += GEMV_CALL_US + unpack_us + matrix.size * GEMV_ELEMENT_US[dtype]
         self._blocks = tuple(blocks)
-        self._gather = np.array(gather, np.int64)
-        block_elements = sum(b.matrix.size for b in blocks)
-        self._block_cost = (
-            len(blocks) * (1 + CONVERT_CALLS[dtype]) * CALL_US + block_elements * ELEMENT_US[dtype]
-        )
-        self._neutral_cost = 3 * n * ELEMENT_US[np.dtype(np.float32)]
+        self._gather = np.array(gather, np.int64)  # (Σ (1 + k_b),) into [1, t]
+        self._gemv_frame_us = GEMV_FRAME_US + gemv_us - 3 * n * COPY_ELEMENT_US  # the axpys copy the neutral
         self.stored_nbytes = int(
             self._range_data.nbytes + sum(b.matrix.nbytes for b in blocks) + self._neutral.nbytes
         )
+
         # 4. what is reached on unit activations, through every path
         self.compaction_error = self._measure(basis)
         log.debug(
-            "compact basis: %d vertices, %d terms, %s; %d ranges, %d blocks, %.2f MB stored; error %.3g",
+            "compact basis: %d vertices, %d terms, %s; %d blocks, %d ranges, %.2f MB; error %.3g",
             n,
             T,
             dtype.name,
-            sum(len(p) for p in plans),
             len(blocks),
+            self.n_ranges,
             self.stored_nbytes / 1e6,
             self.compaction_error.absolute,
         )
@@ -534,9 +551,7 @@ class CompactBasis:
             for a, ref in zip(units, reference, strict=True):
                 for method in ("ranges", "blocks"):
                     worst = max(worst, float(np.abs(self.evaluate(a, method=method) - ref).max()))
-        peak = float(np.abs(basis.deltas).max())
-        if basis.correctives:
-            peak = max(peak, float(np.abs(basis.corrective_deltas).max()))
+        peak = max(float(np.abs(basis.deltas).max()), float(np.abs(basis.corrective_deltas).max(initial=0)))
         return CompactionError(
             absolute=worst,
             relative=worst / peak if peak > 0 else 0.0,
@@ -544,13 +559,22 @@ class CompactBasis:
             neutral=self._neutral_error,
         )
 
-    # ---- evaluation
+    @property
+    def n_blocks(self) -> int:
+        return len(self._blocks)
 
-    def _frame(self, activations: np.ndarray) -> list[float]:
-        """Term activations of one frame as Python floats: the channels, then corrective products.
+    @property
+    def n_ranges(self) -> int:
+        return sum(len(plan) for plan in self._plans)
 
-        The common case (a finite (c,) vector) is checked in a few hundred nanoseconds; anything
-        else goes through ``check_activations`` for a precise message.
+    # ---- one frame
+
+    def _frame(self, activations: np.ndarray) -> tuple[list[float], list[int]]:
+        """Term activations of one frame as Python floats (the channels, then corrective products),
+        and the indices of the non-zero ones.
+
+        The common case (a finite (c,) vector) is checked in about a microsecond; anything else
+        goes through ``check_activations`` for a precise message.
         """
         try:
             a = np.asarray(activations, dtype=np.float64)
@@ -558,53 +582,40 @@ class CompactBasis:
         except (TypeError, ValueError):
             t = None
         if t is None or not math.isfinite(sum(t)):  # the sum is NaN or inf if any value is
-            t = check_activations(self.channels, activations, ndim=1).tolist()  # raises, or overflow
-        t += [t[i] * t[j] for i, j in self._pair_list]
-        return t
+            a = check_activations(self.channels, activations, ndim=1)  # raises, or the sum overflowed
+            t = a.tolist()
+        active = a.nonzero()[0].tolist()
+        c = self._n_channels
+        for k, (i, j) in enumerate(self._pair_list):
+            product = t[i] * t[j]
+            t.append(product)
+            if product:
+                active.append(c + k)
+        return t, active
 
-    def _terms(self, a: np.ndarray) -> np.ndarray:
-        """Term activations (f, T) float64 of checked activations (f, c)."""
-        if not self._pair_list:
-            return a
-        return np.concatenate([a, a[:, self._pairs[:, 0]] * a[:, self._pairs[:, 1]]], axis=1)
+    def _method(self, active: list[int], method: Method) -> Literal["ranges", "blocks"]:
+        """The method to run: "auto" resolves to the cheaper for this frame by the cost model."""
+        if method != "auto":
+            return method
+        axpy_us = sum(self._term_axpy_us[j] for j in active)
+        return "ranges" if axpy_us <= self._gemv_frame_us else "blocks"
 
-    def _alphas(self, t: np.ndarray) -> np.ndarray:
-        """Term activations (..., T) as they multiply the stored values (float16 scale folded in)."""
-        if self.dtype == np.float32:
-            return t
-        alphas = t * self._scale
-        if not np.all(np.abs(alphas) < 2.0**127):
-            raise ActivationError(
-                "activations too large for float16 storage (|activation · delta| ≥ 2^30 rig units); "
-                "build the CompactBasis with dtype=np.float32"
-            )
-        return alphas
+    def plan(self, activations: np.ndarray, *, method: Method = "auto") -> FramePlan:
+        """The BLAS calls ``evaluate(activations, method=method)`` makes and the bytes it reads."""
+        _, active = self._frame(activations)
+        if self._method(active, _checked(method)) == "blocks":
+            neutral = 4 * (self.dtype == np.float16)  # float16 blocks read the float32 neutral apart
+            read = sum(b.matrix.nbytes + (b.hi3 - b.lo3) * neutral for b in self._blocks)
+            return FramePlan(axpy_calls=0, gemv_calls=len(self._blocks), bytes_read=int(read))
+        calls = sum(len(self._plans[j]) for j in active)
+        elements = sum(m for j in active for _, m, _ in self._plans[j])
+        read = self._neutral.nbytes + elements * self.dtype.itemsize
+        return FramePlan(axpy_calls=calls, gemv_calls=0, bytes_read=int(read))
 
-    def _output(self, out: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
-        if out is None:
-            return np.empty(shape, np.float32)
-        if not (
-            isinstance(out, np.ndarray)
-            and out.shape == shape
-            and out.dtype == np.float32
-            and out.flags.c_contiguous
-            and out.flags.writeable
-        ):
-            got = f"{out.shape} {out.dtype}" if isinstance(out, np.ndarray) else type(out).__name__
-            raise ValueError(
-                f"out must be a writeable C-contiguous float32 array of shape {shape}; got {got}"
-            )
-        return out
-
-    def _route(self, active: list[int]) -> Literal["ranges", "blocks"]:
-        cost = self._neutral_cost
-        for j in active:
-            cost += self._range_cost[j]
-        return "ranges" if cost <= self._block_cost else "blocks"
-
-    def choose_method(self, activations: np.ndarray) -> Literal["ranges", "blocks"]:
-        """The layout ``evaluate(activations)`` uses: the cheaper for this frame by the cost model."""
-        return self._route([j for j, x in enumerate(self._frame(activations)) if x])
+    @property
+    def nbytes(self) -> int:
+        """Bytes ``evaluate`` reads for a frame with every channel non-zero (see ``plan``)."""
+        return self.plan(np.ones(self._n_channels)).bytes_read
 
     def evaluate(
         self, activations: np.ndarray, *, out: np.ndarray | None = None, method: Method = "auto"
@@ -618,45 +629,70 @@ class CompactBasis:
         out : (n, 3) float32, optional
             Written in place and returned (saves an allocation per frame).
         method : "auto", "ranges" or "blocks"
-            The layout to use; "auto" picks the cheaper for this frame (``choose_method``). All
-            give results within ``error_bound``.
+            "ranges": the neutral, then one axpy per stored range of each non-zero term;
+            "blocks": one GEMV per block; "auto": the cheaper for this frame by the cost model
+            (``plan`` tells). All give results within ``error_bound``.
 
         Returns
         -------
         vertices : (n, 3) float32, the basis's vertex order, rig units.
         """
-        if method not in ("auto", "ranges", "blocks"):
-            raise ValueError(f"method must be 'auto', 'ranges' or 'blocks'; got {method!r}")
-        t = self._frame(activations)  # (T,) floats
-        active = [j for j, x in enumerate(t) if x]
-        out = self._output(out, (self.n_vertices, 3))
-        if method == "auto":
-            method = self._route(active)
-        if method == "ranges":
-            self._evaluate_ranges(t, active, out.reshape(-1))
-        else:
-            self._evaluate_blocks(t, out.reshape(-1))
+        t, active = self._frame(activations)  # (T,) floats, non-zero indices
+        method = self._method(active, _checked(method))
+        out = _output(out, (self.n_vertices, 3))
+        flat = out.reshape(-1)  # (3n,)
+        if method == "blocks":
+            self._gemv(t, flat)
+            return out
+        np.copyto(flat, self._neutral_flat)
+        if self.dtype == np.float16:
+            self._axpy_f16(t, active, flat)
+            return out
+        saxpy, data, plans = blas.saxpy, self._range_data, self._plans
+        for j in active:
+            alpha = t[j]
+            for offx, m, offy in plans[j]:
+                saxpy(data, flat, m, alpha, offx, 1, offy)
         return out
 
-    def _evaluate_ranges(self, t: list[float], active: list[int], flat: np.ndarray) -> None:
-        """flat (3n,) = neutral + Σ_j t_j D_j over the non-zero terms: one axpy per stored range."""
-        np.copyto(flat, self._neutral_flat)
-        data, plans, saxpy = self._range_data, self._range_plans, blas.saxpy
+    def _alphas(self, t: np.ndarray) -> np.ndarray:
+        """Term activations (..., T) as they multiply the stored values (float16 scale folded in)."""
         if self.dtype == np.float32:
-            for j in active:
-                alpha = t[j]
-                for offx, m, offy in plans[j]:
-                    saxpy(data, flat, m, alpha, offx, 1, offy)
-            return
+            return t
+        alphas = t * self._scale
+        if not np.all(np.abs(alphas) < 2.0**127):
+            raise ActivationError(
+                "activations too large for float16 storage (|activation · delta| ≥ 2^30 rig units); "
+                "build the CompactBasis with dtype=np.float32"
+            )
+        return alphas
+
+    def _gemv(self, t: list[float], flat: np.ndarray) -> None:
+        """flat[block] = W_b^T [1, t[terms_b]] for every block b (the neutral included)."""
+        x = np.empty(self._n_terms + 1, np.float32)
+        x[0] = 1.0
+        x[1:] = self._alphas(np.array(t))
+        x = x[self._gather]  # (Σ (1 + k_b),)
+        buffer = self._unpack_buffer()
+        sgemv = blas.sgemv
+        for block in self._blocks:
+            matrix = self._block_matrix(block, buffer)  # (1 + k_b, 3 m_b)
+            sgemv(1.0, matrix.T, x, 0.0, flat, block.xo, 1, block.lo3, 1, 0, 1)
+
+    def _axpy_f16(self, t: list[float], active: list[int], flat: np.ndarray) -> None:
+        """flat += t_j D_j over the ranges of the non-zero terms, each range unpacked first."""
         alphas = self._alphas(np.array(t)).tolist()
-        buffer = np.empty(max((self._range_elements[j] for j in active), default=0), np.int32)
+        buffer = np.empty(self._longest_range, np.int32)
+        saxpy, data = blas.saxpy, self._range_data
         for j in active:
-            start, stop = self._range_chunks[j]
-            if start == stop:
-                continue
-            values = _unpack_f16(data[start:stop], buffer[: stop - start])  # value · 2^-112
-            for offx, m, offy in plans[j]:
-                saxpy(values, flat, m, alphas[j], offx - start, 1, offy)
+            for offx, m, offy in self._plans[j]:
+                values = _unpack_f16(data[offx : offx + m], buffer[:m])  # value · 2^-112
+                saxpy(values, flat, m, alphas[j], 0, 1, offy)
+
+    def _unpack_buffer(self) -> np.ndarray | None:
+        if self.dtype == np.float32:
+            return None
+        return np.empty(max(b.matrix.size + b.matrix.shape[1] for b in self._blocks), np.int32)
 
     def _block_matrix(self, block: _Block, buffer: np.ndarray | None) -> np.ndarray:
         """The block's (1 + k, 3 m) float32 matrix [neutral; deltas] (float16 unpacked into ``buffer``)."""
@@ -668,22 +704,7 @@ class CompactBasis:
         _unpack_f16(block.matrix, work[1:])
         return work.view(np.float32)
 
-    def _block_buffer(self) -> np.ndarray | None:
-        if self.dtype == np.float32:
-            return None
-        return np.empty(max(b.matrix.size + b.matrix.shape[1] for b in self._blocks), np.int32)
-
-    def _evaluate_blocks(self, t: list[float], flat: np.ndarray) -> None:
-        """flat (3n,) = W_b^T [1, t[terms_b]] for each block b: one GEMV per block, neutral included."""
-        x = np.empty(self._n_terms + 1, np.float32)
-        x[0] = 1.0
-        x[1:] = self._alphas(np.array(t))
-        x = x[self._gather]  # (Σ (1 + k_b),)
-        buffer = self._block_buffer()
-        sgemv = blas.sgemv
-        for block in self._blocks:
-            matrix = self._block_matrix(block, buffer)  # (1 + k_b, 3 m_b)
-            sgemv(1.0, matrix.T, x, 0.0, flat, block.xo, 1, block.lo3, 1, 0, 1)
+    # ---- many frames
 
     def evaluate_batch(self, activations: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
         """Vertex positions for many frames: one GEMM per block, ``A[:, terms_b] @ W_b``.
@@ -700,9 +721,9 @@ class CompactBasis:
         """
         a = check_activations(self.channels, activations, ndim=2)  # (f, c)
         f = len(a)
-        out = self._output(out, (f, self.n_vertices, 3))
+        out = _output(out, (f, self.n_vertices, 3))
         flat = out.reshape(f, 3 * self.n_vertices)  # (f, 3n)
-        buffer = self._block_buffer()
+        buffer = self._unpack_buffer()
         for start in range(0, f, BATCH_CHUNK_FRAMES):
             stop = min(f, start + BATCH_CHUNK_FRAMES)
             x = np.empty((stop - start, self._n_terms + 1), np.float32)  # (f', 1 + T)
@@ -715,33 +736,13 @@ class CompactBasis:
                 np.matmul(columns, matrix, out=flat[start:stop, block.lo3 : block.hi3])
         return out
 
-    # ---- accounting
+    def _terms(self, a: np.ndarray) -> np.ndarray:
+        """Term activations (f, T) float64 of checked activations (f, c)."""
+        if not self._pair_list:
+            return a
+        return np.concatenate([a, a[:, self._pairs[:, 0]] * a[:, self._pairs[:, 1]]], axis=1)
 
-    def bytes_read(self, activations: np.ndarray, *, method: Method = "auto") -> int:
-        """Bytes of stored data ``evaluate(activations, method=method)`` reads (neutral included)."""
-        active = [j for j, x in enumerate(self._frame(activations)) if x]
-        if method == "auto":
-            method = self._route(active)
-        if method == "ranges":
-            deltas = sum(self._range_elements[j] for j in active) * self.dtype.itemsize
-            return int(self._neutral.nbytes + deltas)
-        neutral = 0 if self.dtype == np.float32 else self._neutral.nbytes  # float32 blocks hold it
-        return int(neutral + sum(b.matrix.nbytes for b in self._blocks))
-
-    @property
-    def n_ranges(self) -> int:
-        """Stored ranges over all terms (one BLAS axpy each when the term is active)."""
-        return sum(len(plan) for plan in self._range_plans)
-
-    @property
-    def n_blocks(self) -> int:
-        """Vertex blocks (one GEMV per frame or GEMM per batch each)."""
-        return len(self._blocks)
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes one single-frame evaluation reads when every channel is non-zero (the worst case)."""
-        return self.bytes_read(np.ones(self._n_channels))
+    # ---- accuracy
 
     def error_bound(self, activations: np.ndarray) -> float | np.ndarray:
         """Rigorous bound on max |compact - evaluate_basis|: (c,) -> float, (f, c) -> (f,).
@@ -761,3 +762,24 @@ class CompactBasis:
             + 2 * K * U64 * (magnitude + t @ self._storage_error)  # the float64 reference's own rounding
         )
         return float(bound[0]) if a.ndim == 1 else bound
+
+
+def _checked(method: str) -> Method:
+    if method not in ("auto", "ranges", "blocks"):
+        raise ValueError(f"method must be 'auto', 'ranges' or 'blocks'; got {method!r}")
+    return method
+
+
+def _output(out: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
+    if out is None:
+        return np.empty(shape, np.float32)
+    if not (
+        isinstance(out, np.ndarray)
+        and out.shape == shape
+        and out.dtype == np.float32
+        and out.flags.c_contiguous
+        and out.flags.writeable
+    ):
+        got = f"{out.shape} {out.dtype}" if isinstance(out, np.ndarray) else type(out).__name__
+        raise ValueError(f"out must be a writeable C-contiguous float32 array of shape {shape}; got {got}")
+    return out
