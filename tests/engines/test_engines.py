@@ -175,3 +175,21 @@ def test_engine_rejects_bad_poses():
         engine.deform(np.full(len(engine.rig.channels), np.nan))
     with pytest.raises(MimeticError, match="unknown engine"):
         make_engine(engine.rig, "tissue2")
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_engine_gaze_aims_both_eyes_at_a_target(name):
+    from mimetic.engines.skinning import aim_gaze
+
+    engine = engine_for(name, None)
+    rig = engine.rig
+    target = np.array([8.0, 5.0, 40.0])  # near, up and to the subject's left
+    values = aim_gaze(rig, target)
+    assert values["gaze_convergence"] > 0 and values["gaze_yaw"] > 0 and values["gaze_pitch"] > 0
+    v = engine.deform(pose(rig, values))
+    for side in "LR":
+        bone = rig.bone(f"eye_{side}")
+        pupil = landmark(engine, f"pupil_{side}", v)
+        axis = (pupil - bone.head) / np.linalg.norm(pupil - bone.head)
+        wanted = (target - bone.head) / np.linalg.norm(target - bone.head)
+        assert np.degrees(np.arccos(np.clip(axis @ wanted, -1, 1))) < 1.0, side

@@ -115,3 +115,23 @@ def linear_blend_skinning(vertices: np.ndarray, weights: sp.spmatrix, transforms
         p = vertices[rows]
         out[rows] += w * (p @ m[:3, :3].T + m[:3, 3] - p)
     return out
+
+
+def aim_gaze(rig: Rig, target: np.ndarray) -> dict[str, float]:
+    """Gaze channels (yaw, pitch, convergence, rad) that aim both eyes at ``target`` (3,), rig units.
+
+    Each eye looks along +Z at rest; the aim of an eye at centre c is the direction target - c.
+    Yaw and pitch are those of the midpoint between the eyes, convergence the difference between
+    the two eyes' yaws (positive when both turn toward the nose), as ``bone_transforms`` reads them.
+    """
+    target = np.asarray(target, dtype=np.float64)
+    yaws, pitches = [], []
+    for side in ("L", "R"):
+        d = target - rig.bone(f"eye_{side}").head
+        yaws.append(np.arctan2(d[0], d[2]))
+        pitches.append(np.arctan2(d[1], np.hypot(d[0], d[2])))
+    return {
+        "gaze_yaw": float(0.5 * (yaws[0] + yaws[1])),
+        "gaze_pitch": float(0.5 * (pitches[0] + pitches[1])),
+        "gaze_convergence": float(yaws[1] - yaws[0]),
+    }
