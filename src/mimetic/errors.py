@@ -29,6 +29,14 @@ class ActivationError(MimeticError, ValueError):
     """Activations for unknown channels, of the wrong shape, or outside a channel's range."""
 
 
+class ControlError(MimeticError, ValueError):
+    """An unknown descriptive control, or a slider value of the wrong shape or outside its range."""
+
+
+class ExpressionError(MimeticError, ValueError):
+    """An unknown expression, a malformed library file, or a bad blend weight."""
+
+
 class RenderError(MimeticError, RuntimeError):
     """Offscreen rendering is unavailable (e.g. a missing system library)."""
 

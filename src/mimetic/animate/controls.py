@@ -18,15 +18,11 @@ from importlib import resources
 
 import numpy as np
 
-from mimetic.errors import MimeticError
+from mimetic.errors import ControlError
 from mimetic.rig.activations import pose
 from mimetic.rig.model import Channel, Rig
 
 Setting = float | tuple[float, float]
-
-
-class ControlError(MimeticError, ValueError):
-    """An unknown descriptive control, or a slider value of the wrong shape or outside its range."""
 
 
 @dataclass(frozen=True)

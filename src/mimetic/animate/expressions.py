@@ -40,7 +40,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from mimetic.errors import MimeticError
+from mimetic.errors import ExpressionError
 from mimetic.rig.activations import check_activations, pose
 from mimetic.rig.model import Channel, Rig
 
@@ -48,10 +48,6 @@ FORMAT = "mimetic-expressions"
 VERSION = 1
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*$")
 ENTRY_KEYS = frozenset({"description", "facs", "values"})
-
-
-class ExpressionError(MimeticError, ValueError):
-    """An unknown expression, a malformed library file, or a bad blend weight."""
 
 
 @dataclass(frozen=True)
