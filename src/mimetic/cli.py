@@ -64,9 +64,10 @@ def _progress(label: str) -> Iterator[Callable[[int, int], None]]:
         yield update
 
 
-def _parse_params(items: list[str]) -> dict[str, float]:
-    from mimetic.head.params import HeadParamError
-
+def _name_values(
+    items: list[str], option: str, form: str, example: str, error: type[MimeticError]
+) -> dict[str, float]:
+    """Repeated ``NAME=VALUE`` options -> {name: value}; a malformed item raises ``error``."""
     values = {}
     for item in items:
         name, sep, value = item.partition("=")
@@ -74,9 +75,15 @@ def _parse_params(items: list[str]) -> dict[str, float]:
             values[name.strip()] = float(value)
         except ValueError:
             sep = ""
-        if not sep:
-            raise HeadParamError(f"--param {item!r}: expected NAME=VALUE, e.g. --param nose_length=1.1")
+        if not sep or not name.strip():
+            raise error(f"{option} {item!r}: expected {form}, e.g. {option} {example}")
     return values
+
+
+def _parse_params(items: list[str]) -> dict[str, float]:
+    from mimetic.head.params import HeadParamError
+
+    return _name_values(items, "--param", "NAME=VALUE", "nose_length=1.1", HeadParamError)
 
 
 @app.command()
@@ -251,16 +258,7 @@ def _parse_values(items: list[str]) -> dict[str, float]:
     """``--set CHANNEL=VALUE`` (repeatable) → {channel: value}."""
     from mimetic.errors import ActivationError
 
-    values = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            values[name.strip()] = float(value)
-        except ValueError:
-            sep = ""
-        if not sep or not name.strip():
-            raise ActivationError(f"--set {item!r}: expected CHANNEL=VALUE, e.g. --set jaw_open=0.2")
-    return values
+    return _name_values(items, "--set", "CHANNEL=VALUE", "jaw_open=0.2", ActivationError)
 
 
 POSE_OUTPUTS = (".png", ".obj", ".ply", ".stl", ".glb", ".gltf")
