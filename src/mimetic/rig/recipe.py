@@ -294,7 +294,8 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float
                     weights[m.name] = near.astype(np.float64)
                 else:
                     dist = np.linalg.norm(pos - ins, axis=1)
-                    weights[m.name] = np.round(1.5 * np.exp(-((dist / (0.3 * length)) ** 2)), 6)
+                    reach = max(0.3 * length, 0.06 * scale)  # short muscles still reach their wire
+                    weights[m.name] = np.round(1.5 * np.exp(-((dist / reach) ** 2)), 6)
         # deformation set: the skin within the dropoff, without the lip this wire must not move
         _, _, dist = closest_on_polyline(rest[skin], np.array([p.position(rest, f) for p in pts]))
         members = skin[dist < dropoff * canonical_scale]
