@@ -358,6 +358,7 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     height = (v - stomion) @ normal
     jaw = _smoothstep(0.3, -1.3, height)
     jaw *= _smoothstep(-17.0, -12.5, v[:, 1])  # the neck stays with the head
+    jaw *= _smoothstep(jaw_pivot[2] - 2.0, jaw_pivot[2] + 1.0, v[:, 2])  # and so does all behind the ramus
     jaw[head.regions["lower_lip"]] = 1.0
     jaw[head.regions["upper_lip"]] = 0.0
     parts = head.mesh.parts
