@@ -193,3 +193,18 @@ def test_engine_gaze_aims_both_eyes_at_a_target(name):
         axis = (pupil - bone.head) / np.linalg.norm(pupil - bone.head)
         wanted = (target - bone.head) / np.linalg.norm(target - bone.head)
         assert np.degrees(np.arccos(np.clip(axis @ wanted, -1, 1))) < 1.0, side
+
+
+@pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
+def test_engine_jaw_moves_the_lower_face_only(name, seed):
+    engine = engine_for(name, seed)
+    rig = engine.rig
+    moved = np.linalg.norm(
+        deform(engine, jaw_open=rig.channel("jaw_open").maximum) - rig.mesh.vertices, axis=1
+    )
+    for region in ("scalp", "forehead", "upper_lip", "nose"):
+        assert moved[rig.regions[region]].max() < 1e-9, region  # the cranium, upper face and upper lip stay
+    assert moved[rig.regions["chin"]].min() > 0.05 * rig.scale  # the whole chin rides the jaw
+    lower_teeth = rig.mesh.part_vertices("teeth_lower")
+    assert moved[lower_teeth].min() > 0.0
+    assert moved[rig.mesh.part_vertices("teeth_upper")].max() == 0.0
