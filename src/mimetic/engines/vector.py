@@ -14,7 +14,7 @@ muscle is proportional to its activation. Kernels (for unit activation, lengths 
   plane; elliptical radius rho. Skin inside rho < 1 is drawn toward the centre in the face plane
   by ``K_s rho``-scaled motion (a "string bag") and pushed forward (+Z) by PUCKER of that;
   it falls off with a cosine to 0 at rho = falloff_end_rel. Around an eye only the orbital ring
-  (rho > 0.25) squeezes: the lids themselves close through their bones.
+  squeezes (at 60 %, ramping up smoothly from rho = 0.2 to 0.8): the lids close through their bones.
 * **sheet**: parallel fibres along the axis: motion toward the origin along the axis, with the
   linear muscle's radial falloff along the axis and a cosine falloff across its width.
 
@@ -72,7 +72,8 @@ def muscle_displacement(rig: Rig, name: str, ids: np.ndarray) -> np.ndarray:
         )
         fall *= rho < m.falloff_end_rel
         if _on_eyeball(rig, m.origin.face):  # the orbital ring squeezes; the lids close by their bones
-            fall *= np.clip((rho - 0.25) / 0.3, 0.0, 1.0) ** 2
+            ring = np.clip((rho - 0.2) / 0.6, 0.0, 1.0)
+            fall *= ring * ring * (3 - 2 * ring) * 0.6
         in_plane = rel - np.outer(rel @ FORWARD, FORWARD)
         squeeze = -SPHINCTER_STRENGTH * in_plane
         push = PUCKER * np.linalg.norm(squeeze, axis=1, keepdims=True) * FORWARD
