@@ -97,8 +97,18 @@ def main() -> None:
     out = np.empty((n, 3), np.float32)
     single = median_seconds(lambda: compact.evaluate(realistic, out=out), repeats, 50)
     batch = median_seconds(lambda: compact.evaluate_batch(clip), repeats) / len(clip)
-    bandwidth = read_bandwidth()
-    limit = compact.plan(realistic).bytes_read / bandwidth
+    # the bandwidth limit: bandwidth and evaluation measured in alternation, so that machine noise
+    # (seen here: the same frame taking 44 or 75 µs minutes apart) hits both sides of the ratio
+    nbytes = compact.plan(realistic).bytes_read
+    pairs = []
+    for _ in range(repeats):
+        bw = read_bandwidth()
+        pairs.append((bw, median_seconds(lambda: compact.evaluate(realistic, out=out), 3, 50)))
+    bandwidth, paired = (
+        statistics.median(p[0] for p in pairs),
+        statistics.median(nbytes / p[0] / p[1] for p in pairs),
+    )
+    limit = nbytes / bandwidth
     rows.append(
         (
             "basis float32, 1 frame, realistic pose",
@@ -138,11 +148,12 @@ def main() -> None:
     print(f"bake of the wire engine: {bake_s:.1f} s; " + "; ".join(baked.report.lines()))
     err = compact.compaction_error
     print(f"float32 compaction error: {err.absolute:.2g} rig units ({err.relative:.1e} of the largest delta)")
-    fraction = limit / single
     print(
-        f"single frame at {fraction:.0%} of its bandwidth limit (goal 80 %); "
+        f"single frame at {paired:.0%} of its bandwidth limit (goal 80 %; the median of {len(pairs)} "
+        "interleaved bandwidth and evaluation timings); "
         f"{1 / single:,.0f} frames/s (goal 3,000); batched {1 / batch:,.0f} frames/s (goal 20,000); "
-        f"engines {1 / rows[0][1]:,.0f} (wire) and {1 / rows[2][1]:,.0f} (vector) frames/s (goal 200)"
+        f"engines {1 / rows[0][1]:,.0f} (wire) and {1 / rows[2][1]:,.0f} (vector) frames/s "
+        "(goal 200)"
     )
 
 
