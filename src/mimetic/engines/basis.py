@@ -66,6 +66,7 @@ import numpy as np
 from scipy.linalg import blas
 
 from mimetic.errors import ActivationError, RigError
+from mimetic.rig.activations import check_shape
 
 log = logging.getLogger(__name__)
 
@@ -246,31 +247,8 @@ class Basis:
 
 
 def check_activations(channels: Sequence[str], activations: object, *, ndim: int | None = None) -> np.ndarray:
-    """Activations as float64 (c,) or (f, c) for ``channels``; ``ActivationError`` names what is wrong.
-
-    ``ndim`` (1 or 2) demands one frame or a batch; None accepts either.
-    """
-    try:
-        a = np.asarray(activations, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise ActivationError(f"activations cannot be read as float64 numbers: {error}") from None
-    c = len(channels)
-    wanted = {1: f"({c},)", 2: f"(frames, {c})", None: f"({c},) or (frames, {c})"}[ndim]
-    if a.ndim not in ((1, 2) if ndim is None else (ndim,)):
-        raise ActivationError(f"activations must have shape {wanted}; got {a.shape}")
-    if a.shape[-1] != c:
-        raise ActivationError(
-            f"got {a.shape[-1]} channels; this basis has {c} ({', '.join(channels[:3])}, …). "
-            "Reorder with clip.select(basis.channels)."
-        )
-    if not np.isfinite(a).all():
-        bad = np.argwhere(~np.isfinite(a))[0]
-        frame = f" in frame {bad[0]}" if a.ndim == 2 else ""
-        raise ActivationError(
-            f"activation of channel {channels[bad[-1]]!r}{frame} is not finite ({a[tuple(bad)]}); "
-            "fill or drop the missing values first"
-        )
-    return a
+    """Activations as float64 (c,) or (f, c) for a basis's ``channels`` (``rig.activations.check_shape``)."""
+    return check_shape(channels, activations, ndim=ndim, owner="basis")
 
 
 def evaluate_basis(basis: Basis, activations: np.ndarray) -> np.ndarray:

@@ -47,19 +47,49 @@ def pose(
     return check_activations(channels, out, clip=clip)
 
 
-def check_activations(
-    source: Rig | Sequence[Channel], values: np.ndarray, *, clip: bool = False
+def check_shape(
+    names: Sequence[str], activations: object, *, ndim: int | None = None, owner: str = "rig"
 ) -> np.ndarray:
-    """Validate activations (c,) or (f, c) against the channels; returns float64 (clipped if asked)."""
-    channels = _channels(source)
-    a = np.asarray(values, dtype=np.float64)
-    if a.ndim not in (1, 2) or a.shape[-1] != len(channels):
+    """Activations as float64 (c,) or (f, c) for channels ``names``; ``ActivationError`` names what is wrong.
+
+    ``ndim`` (1 or 2) demands one frame or a batch; None accepts either. ``owner`` ("rig" or
+    "basis") is what the message says the channels belong to.
+    """
+    try:
+        a = np.asarray(activations, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ActivationError(f"activations cannot be read as float64 numbers: {error}") from None
+    c = len(names)
+    wanted = {1: f"({c},)", 2: f"(frames, {c})", None: f"({c},) or (frames, {c})"}[ndim]
+    if a.ndim not in ((1, 2) if ndim is None else (ndim,)):
+        raise ActivationError(f"activations must have shape {wanted}; got {a.shape}")
+    if a.shape[-1] != c:
+        attribute = "channels" if owner == "basis" else "channel_names"
         raise ActivationError(
-            f"activations must have shape ({len(channels)},) or (frames, {len(channels)}); got {a.shape}"
+            f"activations must have shape {wanted}: got {a.shape[-1]} channels; this {owner} has {c} "
+            f"({', '.join(names[:3])}, …). "
+            f"Reorder with clip.select({owner}.{attribute})."
         )
     if not np.isfinite(a).all():
         bad = np.argwhere(~np.isfinite(a))[0]
-        raise ActivationError(f"activation for {channels[bad[-1]].name!r} is not finite ({a[tuple(bad)]})")
+        frame = f" in frame {bad[0]}" if a.ndim == 2 else ""
+        raise ActivationError(
+            f"activation of channel {names[bad[-1]]!r}{frame} is not finite ({a[tuple(bad)]}); "
+            "fill or drop the missing values first"
+        )
+    return a
+
+
+def check_activations(
+    source: Rig | Sequence[Channel], values: np.ndarray, *, clip: bool = False
+) -> np.ndarray:
+    """Validate activations (c,) or (f, c) against the channels and their ranges; returns float64.
+
+    Shape and finiteness as ``check_shape``; values outside a channel's range raise, or are clipped
+    into it when ``clip`` is True.
+    """
+    channels = _channels(source)
+    a = check_shape([c.name for c in channels], values)
     lo = np.array([c.minimum for c in channels])
     hi = np.array([c.maximum for c in channels])
     if clip:
