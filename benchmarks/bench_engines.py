@@ -15,10 +15,10 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from collections.abc import Callable
 
 import numpy as np
 
+from bench_basis import per_call, read_bandwidth  # the same timing helpers as the basis study
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake, random_poses
 from mimetic.engines.basis import CompactBasis
@@ -44,23 +44,6 @@ REALISTIC = {  # a talking, smiling face: 14 channels
 }
 
 
-def median_seconds(fn: Callable[[], object], repeats: int, inner: int = 1) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        for _ in range(inner):
-            fn()
-        times.append((time.perf_counter() - start) / inner)
-    return statistics.median(times)
-
-
-def read_bandwidth() -> float:
-    """Bytes per second numpy streams from memory (a sum over 256 MB, median of 5)."""
-    data = np.ones(32 * 1024 * 1024)
-    return data.nbytes / median_seconds(data.sum, 5)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats (for CI)")
@@ -78,7 +61,7 @@ def main() -> None:
     engines = {name: make_engine(rig, name) for name in ("wire", "vector")}
     for name, engine in engines.items():
         for label, values in (("realistic pose", realistic), ("every channel", everything)):
-            t = median_seconds(lambda e=engine, v=values: e.deform(v), repeats, 20)
+            t = per_call(lambda e=engine, v=values: e.deform(v), 20, repeats)
             rows.append((f"{name} engine, {label}", t, 1, "goal 200 frames/s", 1 / 200))
 
     start = time.perf_counter()
@@ -87,23 +70,23 @@ def main() -> None:
     basis = baked.basis
     c, n = len(basis.channels), basis.n_vertices
     dense64 = basis.deltas.reshape(c, -1)
-    dense_single = median_seconds(lambda: realistic @ dense64, repeats, 20)
+    dense_single = per_call(lambda: realistic @ dense64, 20, repeats)
     clip = random_poses(engines["wire"], 512, np.random.default_rng(1))
-    dense_batch = median_seconds(lambda: clip @ dense64, repeats) / len(clip)
+    dense_batch = per_call(lambda: clip @ dense64, 1, repeats) / len(clip)
     rows.append(("baseline: dense float64 a @ deltas, 1 frame", dense_single, 1, "", dense_single))
     rows.append(("baseline: dense float64 a @ deltas, 512 frames", dense_batch, 1, "", dense_batch))
 
     compact = CompactBasis.build(basis, dtype=np.float32)
     out = np.empty((n, 3), np.float32)
-    single = median_seconds(lambda: compact.evaluate(realistic, out=out), repeats, 50)
-    batch = median_seconds(lambda: compact.evaluate_batch(clip), repeats) / len(clip)
+    single = per_call(lambda: compact.evaluate(realistic, out=out), 50, repeats)
+    batch = per_call(lambda: compact.evaluate_batch(clip), 1, repeats) / len(clip)
     # the bandwidth limit: bandwidth and evaluation measured in alternation, so that machine noise
     # (seen here: the same frame taking 44 or 75 µs minutes apart) hits both sides of the ratio
     nbytes = compact.plan(realistic).bytes_read
     pairs = []
     for _ in range(repeats):
-        bw = read_bandwidth()
-        pairs.append((bw, median_seconds(lambda: compact.evaluate(realistic, out=out), 3, 50)))
+        bw = read_bandwidth(5)
+        pairs.append((bw, per_call(lambda: compact.evaluate(realistic, out=out), 50, 3)))
     bandwidth, paired = (
         statistics.median(p[0] for p in pairs),
         statistics.median(nbytes / p[0] / p[1] for p in pairs),
