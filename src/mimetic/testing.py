@@ -16,7 +16,9 @@ This module imports the test-free parts of mimetic only; nothing in the package 
 
 from __future__ import annotations
 
+import os
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -127,3 +129,40 @@ def capped_skin(head: Head) -> Mesh:
         faces.append(np.column_stack([np.roll(loop, -1), loop, np.full(len(loop), n)]))
         n += 1
     return Mesh(np.concatenate(vertices), np.concatenate(faces))
+
+
+SHARED_DATA_ENV = "MIMETIC_SHARED_DATA"
+"""Environment variable naming the shared test-data folder (default: ``../shared/data`` beside the repo)."""
+
+
+def shared_data_dir() -> Path | None:
+    """The shared real-data folder (ICT-FaceKit, MediaPipe, speech, landmarks), or None when absent.
+
+    Looks at ``$MIMETIC_SHARED_DATA``, then ``../shared/data`` beside the repository (the layout on
+    CI and in development). Tests that need it call ``require_shared_data``.
+    """
+    env = os.environ.get(SHARED_DATA_ENV)
+    candidates = [Path(env)] if env else []
+    candidates.append(Path(__file__).resolve().parents[3] / "shared" / "data")
+    return next((c for c in candidates if (c / "README.md").is_file()), None)
+
+
+def require_shared_data(relative: str = "") -> Path:
+    """The path ``relative`` inside the shared data folder; skips the test when it is absent.
+
+    On CI (``CI=true``) a missing folder fails the test instead, so CI always runs the tests on
+    real data.
+    """
+    import pytest
+
+    root = shared_data_dir()
+    path = None if root is None else root / relative
+    if path is None or not path.exists():
+        reason = (
+            f"shared test data {relative or 'folder'!r} not found (looked in ${SHARED_DATA_ENV} and "
+            "../shared/data beside the repository)"
+        )
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(f"{reason}; CI=true requires it")
+        pytest.skip(reason)
+    return path

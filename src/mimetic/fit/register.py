@@ -1,0 +1,249 @@
+"""Non-rigid registration of the reference skin onto a target surface.
+
+The global-fit energy of the automated rigging thesis (§5.6, after Jeong et al. 2002), with the
+smoothness term on the displacement instead of the positions, so the reference keeps its
+features while it bends:
+
+    E(x) = Σ_i w_i |x_i − q_i|²                    closest-point data, both directions
+         + α Σ_i |L (x − x0)_i|²                    smoothness (umbrella Laplacian L)
+         + β Σ_l |x_l − t_l|²                       landmark binding
+
+``q_i`` is the point-to-plane target of vertex i: its position moved along the target's normal
+onto the tangent plane at its closest target sample (so vertices slide along the surface). Pairs
+are kept only when their normals agree (cos ≥ ``NORMAL_COS``) and they are closer than a
+distance that shrinks over the schedule, and the target's border (where a scan or a bust is
+cut) takes no part, so holes, cut necks, open eyes and mouths and inner parts (eyeballs, teeth)
+do not attract the skin. (A target → reference term, pulling each reference vertex toward the
+target points nearest to it, crumpled the skin around the nose and mouth on the ICT head, so
+there is none.) Every term is
+diagonal except the smoothness, so each iteration solves one sparse SPD system
+``(W + α LᵀL + β S) x = W q + α LᵀL x0 + β t`` for the three coordinates, and the
+correspondences are recomputed between solves while α decreases (coarse to fine).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import cg
+from scipy.spatial import cKDTree
+
+from mimetic.mesh.closest import closest_points
+from mimetic.mesh.geometry import (
+    boundary_edges,
+    connected_components,
+    face_normals,
+    vertex_adjacency,
+    vertex_normals,
+)
+from mimetic.mesh.model import Mesh
+
+NORMAL_COS = 0.5  # pairs whose normals differ by more than 60° are ignored
+MIN_SAMPLES = 40_000  # target surface samples (more for sparse targets, subsampled for dense ones)
+MAX_SAMPLES = 200_000
+CG_RTOL = 1e-7
+CG_MAXITER = 3_000
+OUTER_AREA_SHARE = 0.05  # components with less of the total area are inner parts (eyeballs, teeth)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One step of the schedule: ``iterations`` solves at one stiffness.
+
+    ``stiffness`` is α (unitless: data and smoothness rows are both in length units);
+    ``max_distance_rel`` the pair cut-off as a fraction of the head size; ``landmark_weight`` β.
+    """
+
+    stiffness: float
+    max_distance_rel: float
+    landmark_weight: float
+    iterations: int = 2
+
+
+SCHEDULE: tuple[Stage, ...] = (
+    Stage(50.0, 0.10, 10.0),
+    Stage(20.0, 0.08, 5.0),
+    Stage(8.0, 0.06, 2.0),
+    Stage(3.0, 0.05, 1.0),
+    Stage(1.0, 0.04, 0.5),
+    Stage(0.4, 0.03, 0.3, iterations=3),
+)
+
+
+@dataclass(frozen=True)
+class TargetSurface:
+    """Points and unit normals sampled on a target's outer surface.
+
+    Attributes
+    ----------
+    points, normals : (m, 3) float64
+        Samples (the vertices of the outer components plus area-weighted random points) and their
+        interpolated unit normals, in the target's frame.
+    vertices : (n, 3) float64
+        The target's vertices.
+    triangles : (f, 3) int64
+        The target triangles kept as outer surface (parts with a small share of the area, such as
+        eyeballs and teeth, and the faces on its border are left out).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    vertices: np.ndarray
+    triangles: np.ndarray
+
+
+def outer_faces(mesh: Mesh) -> np.ndarray:
+    """Faces (f,) of the connected components holding at least ``OUTER_AREA_SHARE`` of the area,
+    without the faces touching a border vertex (a cut neck or a hole is not surface to fit)."""
+    _, labels = connected_components(mesh.faces, mesh.n_vertices)
+    face_label = labels[mesh.faces[:, 0]]
+    area = 0.5 * np.linalg.norm(face_normals(mesh.vertices, mesh.faces, unit=False), axis=1)
+    per_component = np.bincount(face_label, weights=area)
+    keep = per_component >= OUTER_AREA_SHARE * per_component.sum()
+    border = np.zeros(mesh.n_vertices, dtype=bool)
+    border[boundary_edges(mesh.faces).ravel()] = True
+    keep_face = keep[face_label] & ~border[mesh.faces].any(axis=1)
+    return np.nonzero(keep_face)[0]
+
+
+def sample_surface(mesh: Mesh, *, seed: int = 0) -> TargetSurface:
+    """Samples of ``mesh``'s outer surface: between ``MIN_SAMPLES`` and ``MAX_SAMPLES`` points."""
+    rng = np.random.default_rng(seed)
+    faces = outer_faces(mesh)
+    f = mesh.faces[faces]
+    v = mesh.vertices
+    vn = vertex_normals(v, mesh.faces)
+    used = np.unique(f)
+    if len(used) > MAX_SAMPLES:
+        used = np.sort(rng.choice(used, MAX_SAMPLES, replace=False))
+    points, normals = [v[used]], [vn[used]]
+    extra = MIN_SAMPLES - len(used)
+    if extra > 0:
+        area = 0.5 * np.linalg.norm(face_normals(v, f.reshape(-1, 3), unit=False), axis=1)
+        pick = rng.choice(len(f), extra, p=area / area.sum())
+        r = rng.random((extra, 2))
+        flip = r.sum(axis=1) > 1
+        r[flip] = 1 - r[flip]
+        bary = np.column_stack([1 - r.sum(axis=1), r])  # (extra, 3)
+        points.append(np.einsum("kj,kjd->kd", bary, v[f[pick]]))
+        normals.append(np.einsum("kj,kjd->kd", bary, vn[f[pick]]))
+    n = np.concatenate(normals)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    return TargetSurface(np.concatenate(points), n, v, mesh.faces[faces])
+
+
+@dataclass(frozen=True)
+class Registration:
+    """The fitted reference.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64
+        Fitted positions of the registered vertices, in the target's frame.
+    distance : (n,) float64
+        Distance from each vertex to the target surface at the end (nan where the vertex had no
+        compatible target point in the last step: holes, the far side of a face-only scan).
+    solves : int
+        Linear solves done.
+    """
+
+    vertices: np.ndarray
+    distance: np.ndarray
+    solves: int
+
+
+def umbrella_laplacian(faces: np.ndarray, n: int) -> sp.csr_matrix:
+    """The uniform Laplacian (n, n): ``(L x)_i = x_i − mean of its neighbours``."""
+    adjacency = vertex_adjacency(faces, n).astype(np.float64)
+    degree = np.asarray(adjacency.sum(axis=1)).ravel()
+    inv = np.divide(1.0, degree, out=np.zeros_like(degree), where=degree > 0)
+    return (sp.identity(n, format="csr") - sp.diags(inv) @ adjacency).tocsr()
+
+
+def _solve_spd(system: sp.csr_matrix, rhs: np.ndarray, guess: np.ndarray) -> np.ndarray:
+    """Solve the SPD ``system`` (n, n) for each column of ``rhs`` (n, 3), by Jacobi-preconditioned
+    conjugate gradients warm-started at ``guess``: between schedule steps the solution moves
+    little, so this is several times faster than a fresh sparse factorisation."""
+    precondition = sp.diags(1.0 / system.diagonal())
+    out = np.empty_like(rhs)
+    for d in range(rhs.shape[1]):
+        out[:, d], _ = cg(system, rhs[:, d], x0=guess[:, d], rtol=CG_RTOL, maxiter=CG_MAXITER, M=precondition)
+    return out
+
+
+def register(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    target: TargetSurface,
+    *,
+    projectable: np.ndarray,
+    size: float,
+    landmarks: np.ndarray | None = None,
+    landmark_targets: np.ndarray | None = None,
+    landmark_weights: np.ndarray | None = None,
+    schedule: Sequence[Stage] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Registration:
+    """Fit a surface (the reference skin) to ``target``, starting from ``vertices``.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        Start positions (already aligned and conformed), target units.
+    faces : (m, 3) int64
+        The reference's triangles (only used for its Laplacian and normals).
+    target : TargetSurface
+    projectable : (n,) bool
+        Vertices that may take data terms (not the inner lips or the eye's conjunctiva).
+    size : float
+        Head size (height) in target units; distance cut-offs are fractions of it.
+    landmarks : (k,) int64, optional
+        Reference vertices bound to ``landmark_targets`` (k, 3) with ``landmark_weights`` (k,).
+    progress : callable(done, total), optional
+    """
+    schedule = SCHEDULE if schedule is None else schedule
+    x0 = np.asarray(vertices, dtype=np.float64)
+    n = len(x0)
+    lap = umbrella_laplacian(faces, n)
+    ltl = (lap.T @ lap).tocsc()
+    ltl_x0 = ltl @ x0
+    tree = cKDTree(target.points)
+    lm = np.zeros(0, np.int64) if landmarks is None else np.asarray(landmarks, dtype=np.int64)
+    lm_w = np.ones(len(lm)) if landmark_weights is None else np.asarray(landmark_weights, dtype=np.float64)
+    candidates = np.nonzero(projectable)[0]
+    x = x0.copy()
+    total = sum(stage.iterations for stage in schedule)
+    done = 0
+    for stage in schedule:
+        limit = stage.max_distance_rel * size
+        for _ in range(stage.iterations):
+            normals = vertex_normals(x, faces)
+            weight = np.zeros(n)
+            goal = np.zeros((n, 3))
+            # reference → target: slide onto the tangent plane of the closest target sample
+            dist, nearest = tree.query(x[candidates], distance_upper_bound=limit)
+            ok = np.isfinite(dist)
+            ids, near = candidates[ok], nearest[ok]
+            ok = np.einsum("kd,kd->k", normals[ids], target.normals[near]) >= NORMAL_COS
+            ids, near = ids[ok], near[ok]
+            tn = target.normals[near]
+            offset = np.einsum("kd,kd->k", x[ids] - target.points[near], tn)
+            goal[ids] = x[ids] - offset[:, None] * tn
+            weight[ids] = 1.0
+            # landmarks
+            diag = weight.copy()
+            rhs = weight[:, None] * goal
+            if len(lm):
+                np.add.at(diag, lm, stage.landmark_weight * lm_w)
+                np.add.at(rhs, lm, (stage.landmark_weight * lm_w)[:, None] * landmark_targets)
+            system = (sp.diags(diag) + stage.stiffness * ltl).tocsr()
+            x = _solve_spd(system, rhs + stage.stiffness * ltl_x0, x)
+            done += 1
+            if progress is not None:
+                progress(done, total)
+    distance = np.full(n, np.nan)
+    distance[ids] = closest_points(target.vertices, target.triangles, x[ids]).distance
+    return Registration(x, distance, done)

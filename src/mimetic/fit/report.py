@@ -1,0 +1,168 @@
+"""How well the reference fits a user's mesh, and whether the mesh is a head at all.
+
+Residuals are distances between the fitted reference and the user's surface, in % of the head
+diagonal (the bounding-box diagonal of the fitted reference skin, so a bust's shoulders do not
+dilute them):
+
+* ``surface``: from each fitted reference skin vertex that had a compatible target point (the
+  fit's own measure, what ``trimesh.registration`` reports for its source);
+* ``coverage``: the share of the reference face (skin vertices looking forward) that found the
+  target: a face-only scan covers the face, a cube does not look like one;
+* per landmark: the target landmark against the fitted reference's, in % of the inter-ocular
+  distance (outer eye corners) and in the user's units;
+* per region: the mean surface residual of each reference region, flagged above
+  ``POOR_REGION_PCT``.
+
+The reject gate fails a fit whose landmarks cannot be explained by a head (landmark RMS after the
+similarity and conformation fit above ``MAX_LANDMARK_RMS_PCT`` of the IOD), whose face coverage is
+below ``MIN_COVERAGE``, or whose mean residual is above ``MAX_MEAN_PCT``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mimetic.atomic import atomic_write
+from mimetic.fit.reference import ReferenceFit, projectable_vertices
+from mimetic.head.topology import build_topology
+
+POOR_REGION_PCT = 1.0
+MAX_LANDMARK_RMS_PCT = 15.0
+MIN_COVERAGE = 0.6
+MAX_MEAN_PCT = 1.5
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """The fit's numbers (see the module docstring); JSON-safe fields only.
+
+    Attributes
+    ----------
+    units : str
+        The user's units; ``head_diagonal`` and the ``*_units`` values are in them.
+    head_diagonal : float
+    mean_pct, p95_pct, max_pct : float
+        Surface residual of the fitted reference, % of the head diagonal.
+    coverage : float
+        In [0, 1].
+    landmark_rms_pct : float
+        % of the inter-ocular distance.
+    landmarks : dict name -> {"error_pct_iod": float, "error_units": float}
+    regions : dict name -> mean residual, % of the head diagonal
+    poor_regions : list of str
+    accepted : bool
+    reasons : list of str
+        Why the gate failed (empty when accepted).
+    params : dict
+        The fitted ``HeadParams``.
+    scale : float
+        Reference units (cm of the default head) per user unit.
+    """
+
+    units: str
+    head_diagonal: float
+    mean_pct: float
+    p95_pct: float
+    max_pct: float
+    coverage: float
+    landmark_rms_pct: float
+    landmarks: dict
+    regions: dict
+    poor_regions: list
+    accepted: bool
+    reasons: list
+    params: dict
+    scale: float
+
+    def summary(self) -> str:
+        """A few lines for a terminal."""
+        lines = [
+            f"surface residual: mean {self.mean_pct:.3f} %, p95 {self.p95_pct:.3f} %, "
+            f"max {self.max_pct:.3f} % of the head diagonal ({self.head_diagonal:.4g} {self.units})",
+            f"face coverage: {100 * self.coverage:.1f} %; "
+            f"landmark RMS: {self.landmark_rms_pct:.2f} % of the IOD",
+        ]
+        if self.poor_regions:
+            lines.append(f"regions fitting poorly (> {POOR_REGION_PCT} %): {', '.join(self.poor_regions)}")
+        lines.append("accepted" if self.accepted else "REJECTED: " + "; ".join(self.reasons))
+        return "\n".join(lines)
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the report as JSON (atomically)."""
+        path = Path(path)
+        with atomic_write(path, "w") as handle:
+            handle.write(self.to_json())
+        return path
+
+
+def fit_report(fit: ReferenceFit, units: str) -> FitReport:
+    """The report of a reference fit (see the module docstring)."""
+    head = fit.head
+    skin = head.mesh.vertices[: head.n_skin]
+    model_per_user = fit.conformation.to_model.scale  # reference-frame length per user unit
+    diagonal_model = float(np.linalg.norm(np.ptp(skin, axis=0)))
+    distance = fit.registration.distance  # (n_skin,) reference units, nan where unmatched
+    pct = 100.0 * distance / diagonal_model
+    matched = np.isfinite(pct)
+    front = build_topology(head.resolution).directions[:, 2] > 0.3
+    face = front & projectable_vertices(head)
+    coverage = float(matched[face].mean())
+    values = pct[matched]
+    mean_pct = float(values.mean()) if len(values) else float("inf")
+    p95_pct = float(np.percentile(values, 95)) if len(values) else float("inf")
+    max_pct = float(values.max()) if len(values) else float("inf")
+
+    corners = [n for n in ("eye_outer_corner_L", "eye_outer_corner_R") if n in head.landmarks]
+    iod = float(np.linalg.norm(np.subtract(*head.landmark_positions(corners)))) if len(corners) == 2 else 1.0
+    fitted = head.landmark_positions(list(fit.landmark_names))
+    errors = np.linalg.norm(fitted - fit.landmark_targets, axis=1)
+    landmarks = {
+        name: {"error_pct_iod": float(100 * e / iod), "error_units": float(e / model_per_user)}
+        for name, e in zip(fit.landmark_names, errors, strict=True)
+    }
+    conform_rms_pct = float(100 * np.sqrt(np.mean(fit.conformation.residual**2)) / iod)
+    regions = {}
+    for name, ids in head.regions.items():
+        ids = ids[ids < head.n_skin]
+        ok = ids[matched[ids]]
+        if len(ok) >= max(3, len(ids) // 4):
+            regions[name] = float(pct[ok].mean())
+    poor = sorted(n for n, v in regions.items() if v > POOR_REGION_PCT)
+    reasons = []
+    if conform_rms_pct > MAX_LANDMARK_RMS_PCT:
+        reasons.append(
+            f"the landmarks do not fit a head (RMS {conform_rms_pct:.1f} % of the eye distance after "
+            f"alignment, limit {MAX_LANDMARK_RMS_PCT} %): check their names and positions"
+        )
+    if coverage < MIN_COVERAGE:
+        reasons.append(
+            f"only {100 * coverage:.0f} % of the reference face found the surface (at least "
+            f"{100 * MIN_COVERAGE:.0f} % needed): is this a head, with the face where the landmarks say?"
+        )
+    if mean_pct > MAX_MEAN_PCT:
+        reasons.append(
+            f"mean surface residual {mean_pct:.2f} % of the head diagonal (limit {MAX_MEAN_PCT} %)"
+        )
+    return FitReport(
+        units=units,
+        head_diagonal=diagonal_model / model_per_user,
+        mean_pct=mean_pct,
+        p95_pct=p95_pct,
+        max_pct=max_pct,
+        coverage=coverage,
+        landmark_rms_pct=float(100 * np.sqrt(np.mean(errors**2)) / iod),
+        landmarks=landmarks,
+        regions=regions,
+        poor_regions=poor,
+        accepted=not reasons,
+        reasons=reasons,
+        params=fit.conformation.params.as_dict(),
+        scale=float(model_per_user),
+    )

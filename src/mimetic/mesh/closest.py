@@ -1,0 +1,86 @@
+"""Closest points on a triangle mesh, vectorised: candidates from a k-d tree, exact per triangle.
+
+``trimesh.proximity.closest_point`` is exact but loops in Python per query (about 0.6 ms each on
+a 27k-triangle head, so 15 s for a 26k-vertex mesh). Here each query takes its ``k`` nearest
+triangles by centroid from a ``cKDTree`` and the closest point on each is computed at once with
+``trimesh.triangles.closest_point``; on meshes whose triangles are small next to the distances
+involved (heads) this finds the exact closest triangle, and never returns a point off the mesh.
+An optional normal test skips triangles facing away from the query's normal (the upper lip's
+underside does not take the lower lip's vertices).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from mimetic.mesh.geometry import face_normals
+
+CANDIDATES = 12
+
+
+@dataclass(frozen=True)
+class ClosestPoints:
+    """Closest points of queries on a mesh.
+
+    Attributes
+    ----------
+    points : (q, 3) float64
+        The closest points, in the mesh's units.
+    faces : (q,) int64
+        Their triangles (index into the mesh's faces); -1 where no triangle qualified.
+    bary : (q, 3) float64
+        Barycentric coordinates in ``faces`` (each row sums to 1).
+    distance : (q,) float64
+        Distance from each query (inf where ``faces`` is -1).
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    bary: np.ndarray
+    distance: np.ndarray
+
+
+def closest_points(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    queries: np.ndarray,
+    *,
+    query_normals: np.ndarray | None = None,
+    min_cos: float = 0.0,
+    candidates: int = CANDIDATES,
+) -> ClosestPoints:
+    """The closest point on triangles ``faces`` (m, 3) of ``vertices`` (n, 3) to each query (q, 3).
+
+    With ``query_normals`` (q, 3) (unit), triangles whose unit normal makes a cosine below
+    ``min_cos`` with the query's normal are skipped.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    q = np.asarray(queries, dtype=np.float64)
+    k = min(candidates, len(f))
+    tri = v[f]  # (m, 3, 3)
+    _, near = cKDTree(tri.mean(axis=1)).query(q, k=k)
+    near = near.reshape(len(q), k)  # (q, k)
+    flat = near.ravel()
+    pts = trimesh.triangles.closest_point(tri[flat], np.repeat(q, k, axis=0)).reshape(len(q), k, 3)
+    dist = np.linalg.norm(pts - q[:, None, :], axis=2)  # (q, k)
+    if query_normals is not None:
+        fn = face_normals(v, f)
+        cos = np.einsum("qkd,qd->qk", fn[near], np.asarray(query_normals, dtype=np.float64))
+        dist = np.where(cos >= min_cos, dist, np.inf)
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(q))
+    face = near[rows, best]
+    point = pts[rows, best]
+    distance = dist[rows, best]
+    found = np.isfinite(distance)
+    bary = np.zeros((len(q), 3))
+    if found.any():
+        b = trimesh.triangles.points_to_barycentric(tri[face[found]], point[found])
+        b = np.clip(b, 0.0, None)
+        bary[found] = b / b.sum(axis=1, keepdims=True)
+    return ClosestPoints(point, np.where(found, face, -1), bary, distance)
