@@ -236,6 +236,87 @@ def render(
     stdout.print(f"wrote {out}", highlight=False)
 
 
+@contextmanager
+def _step_progress() -> Iterator[Callable[[str, int, int], None]]:
+    """A progress callback ``(step, done, total)`` showing one bar per named step."""
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(),
+        console=stderr,
+        transient=True,
+    ) as bar:
+        tasks: dict[str, int] = {}
+
+        def update(step: str, done: int, total: int) -> None:
+            if step not in tasks:
+                tasks[step] = bar.add_task(step, total=total)
+            bar.update(tasks[step], completed=done, total=total)
+
+        yield update
+
+
+@app.command("rig")
+def rig_command(
+    mesh_file: Path = typer.Argument(..., help="The head mesh to rig (.obj .ply .stl .glb .gltf)."),
+    out: Path = typer.Option(..., "-o", "--out", help="The .mrig file to write."),
+    landmarks: Path | None = typer.Option(
+        None, "--landmarks", help="Landmark file (JSON or CSV; project or ibug68_NN names)."
+    ),
+    auto_landmarks: bool = typer.Option(
+        False, "--auto-landmarks", help="Find landmarks with MediaPipe (the default without --landmarks)."
+    ),
+    units: str | None = typer.Option(None, "--units", help="The mesh's units if the file does not say."),
+    report: Path | None = typer.Option(
+        None, "--report", help="Fit report JSON (default: next to the rig, NAME.fit.json)."
+    ),
+    picture: Path | None = typer.Option(
+        None, "--picture", help="Residual-coloured PNG of the fit (default: NAME.fit.png)."
+    ),
+    force: bool = typer.Option(False, "--force", help="Write the rig even if the fit looks wrong."),
+    resolution: int = typer.Option(10_000, "--resolution", help="Skin vertex count of the reference head."),
+) -> None:
+    """Fit the reference head to a mesh and write a muscle rig on the mesh's own vertices."""
+    from mimetic.fit.landmarks import auto_landmarks as find_landmarks
+    from mimetic.fit.landmarks import read_landmarks
+    from mimetic.fit.pipeline import rig_head
+    from mimetic.mesh.io import load_mesh
+    from mimetic.rig.format import save_rig
+
+    with _user_errors():
+        if landmarks is not None and auto_landmarks:
+            raise MimeticError("give --landmarks FILE or --auto-landmarks, not both")
+        if out.suffix.lower() != ".mrig":
+            raise MimeticError(f"-o {out}: a rig is written as .mrig")
+        mesh = load_mesh(mesh_file, units=units)
+        with _step_progress() as progress:
+            if landmarks is not None:
+                found = read_landmarks(landmarks, mesh_units=mesh.units)
+            else:
+                progress("landmarks (MediaPipe)", 0, 1)
+                found = find_landmarks(mesh)
+                progress("landmarks (MediaPipe)", 1, 1)
+            result = rig_head(
+                mesh,
+                found,
+                resolution=resolution,
+                force=force,
+                progress=progress,
+                metadata={"source": mesh_file.name},
+            )
+        stem = out.with_suffix("")
+        written = [save_rig(result.rig, out)]
+        written.append(result.report.save(report or stem.with_name(stem.name + ".fit.json")))
+        from mimetic.view import save_png
+        from mimetic.view.fitreport import fit_report_image
+
+        written.append(save_png(fit_report_image(result), picture or stem.with_name(stem.name + ".fit.png")))
+    stdout.print(result.report.summary(), highlight=False)
+    for path in written:
+        stdout.print(f"wrote {path}", highlight=False)
+
+
 def _parse_weights(items: list[str]) -> list[tuple[str, float]]:
     """``--expr NAME`` or ``--expr NAME=WEIGHT`` (repeatable) → [(name, weight)]."""
     from mimetic.animate.expressions import ExpressionError
@@ -336,3 +417,5 @@ def demo(
     for path in result.files:
         table.add_row(str(path), f"{path.stat().st_size / 1024:,.0f} KB")
     stdout.print(table)
+    for note in result.notes:
+        stdout.print(f"note: {note}", highlight=False)

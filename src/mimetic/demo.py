@@ -8,22 +8,33 @@ engines (``muscles_wire.png``, ``muscles_vector.png``: every muscle at full cont
 expression sheets (``expressions.png`` with the wire engine, ``expressions_vector.png``) and each
 library expression as a posed mesh and a face render (``expressions/NAME.obj``, ``NAME.png``,
 wire engine).
+
+When the shared real data is present (``../shared/data`` beside the repository, or
+``$MIMETIC_SHARED_DATA``), it also rigs the ICT-FaceKit neutral head automatically (MediaPipe
+landmarks, or ICT's own 68 landmark vertices without the ``[track]`` extra) into ``ict/``: the
+rig, its fit report (JSON and a residual picture) and an expression sheet on ICT's own mesh.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from mimetic.animate.expressions import expression_pose, load_library
 from mimetic.engines import Engine, make_engine
+from mimetic.errors import MissingExtraError
 from mimetic.head.model import DEFAULT_RESOLUTION, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.io import save_mesh
+from mimetic.mesh.model import Mesh
 from mimetic.rig.format import save_rig
 from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
+from mimetic.shared_data import shared_data_dir
 from mimetic.view.muscles import render_rig
 from mimetic.view.render import Renderer
 from mimetic.view.sheet import contact_sheet, save_png
@@ -36,6 +47,7 @@ Progress = Callable[[int, int], None]
 class DemoResult:
     out_dir: Path
     files: tuple[Path, ...]
+    notes: tuple[str, ...] = ()
 
 
 def run_demo(
@@ -87,9 +99,69 @@ def run_demo(
     if progress:
         progress(total - 1, total)
     files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer)
+    ict_files, notes = _ict(out / "ict", renderer)
+    files += ict_files
     if progress:
         progress(total, total)
-    return DemoResult(out, tuple(files))
+    return DemoResult(out, tuple(files), tuple(notes))
+
+
+ICT_SHELLS = ("Lacrimal fluid", "Eye blend", "Eye occlusion")
+
+
+def _without_ict_shells(mesh: Mesh, meta: dict) -> Mesh:
+    """ICT's head without its transparent eye shells (lacrimal fluid, eye blend, eye occlusion),
+    which render as dark caps over the eyes without a transparency pass. They come after the
+    eyeballs, so the vertices before them keep their indices (the 68 landmarks among them)."""
+    drop = np.zeros(mesh.n_vertices, dtype=bool)
+    for part in meta["parts"]:
+        if part["name"].startswith(ICT_SHELLS):
+            first, last = part["vertex_range"]
+            drop[first : last + 1] = True
+    keep = np.nonzero(~drop)[0]
+    remap = np.full(mesh.n_vertices, -1)
+    remap[keep] = np.arange(len(keep))
+    faces = mesh.faces[~drop[mesh.faces].any(axis=1)]
+    return Mesh(mesh.vertices[keep], remap[faces], units=mesh.units)
+
+
+def _ict(folder: Path, renderer: Renderer) -> tuple[list[Path], list[str]]:
+    """Rig the ICT-FaceKit neutral head automatically and pose it (when the shared data is present)."""
+    from mimetic.fit.landmarks import Landmarks, auto_landmarks, write_landmarks
+    from mimetic.fit.pipeline import rig_head
+    from mimetic.head.landmarks import IBUG68
+    from mimetic.view.fitreport import fit_report_image
+
+    data = shared_data_dir()
+    if data is None or not (data / "ict-facekit" / "neutral.npz").is_file():
+        return [], ["ICT-FaceKit head skipped: no shared data (set MIMETIC_SHARED_DATA to its data folder)"]
+    ict = np.load(data / "ict-facekit" / "neutral.npz")
+    meta = json.loads((data / "ict-facekit" / "meta.json").read_text())
+    mesh = _without_ict_shells(
+        Mesh(ict["vertices"].astype(np.float64), ict["faces"].astype(np.int64), units="cm"), meta
+    )
+    notes = []
+    try:
+        landmarks = auto_landmarks(mesh, renderer=renderer)
+    except MissingExtraError as error:
+        ids = np.array(meta["landmarks_68"]["vertex_indices"])
+        use = [i for i in range(17, 68) if i not in (60, 64)]
+        names = tuple(IBUG68[i] for i in use)
+        landmarks = Landmarks(
+            names, mesh.vertices[ids[use]], np.ones(len(use)), "cm", "ict-facekit landmarks_68"
+        )
+        notes.append(f"ICT-FaceKit head rigged from its own landmark vertices ({error})")
+    folder.mkdir(parents=True, exist_ok=True)
+    result = rig_head(mesh, landmarks, metadata={"source": "ict-facekit/neutral.npz"})
+    files = [
+        write_landmarks(landmarks, folder / "landmarks.json"),
+        save_rig(result.rig, folder / "ict.mrig"),
+        result.report.save(folder / "ict.fit.json"),
+        save_png(fit_report_image(result, renderer=renderer), folder / "ict.fit.png"),
+    ]
+    sheet = expression_sheet(result.rig, "wire", load_library(), size=256, renderer=renderer)
+    files.append(save_png(sheet, folder / "expressions.png"))
+    return files, notes
 
 
 def _action_sheets(

@@ -27,6 +27,7 @@ from mimetic.head.params import PARAM_RANGES, HeadParams
 from mimetic.mesh.geometry import boundary_loops
 from mimetic.mesh.model import Mesh
 from mimetic.rig.model import Rig
+from mimetic.shared_data import SHARED_DATA_ENV, shared_data_dir
 
 SMALL_RESOLUTION = 2_500
 """Requested skin vertex count of the small heads: about 0.25 s to build, 2,580 skin vertices."""
@@ -129,22 +130,6 @@ def capped_skin(head: Head) -> Mesh:
         faces.append(np.column_stack([np.roll(loop, -1), loop, np.full(len(loop), n)]))
         n += 1
     return Mesh(np.concatenate(vertices), np.concatenate(faces))
-
-
-SHARED_DATA_ENV = "MIMETIC_SHARED_DATA"
-"""Environment variable naming the shared test-data folder (default: ``../shared/data`` beside the repo)."""
-
-
-def shared_data_dir() -> Path | None:
-    """The shared real-data folder (ICT-FaceKit, MediaPipe, speech, landmarks), or None when absent.
-
-    Looks at ``$MIMETIC_SHARED_DATA``, then ``../shared/data`` beside the repository (the layout on
-    CI and in development). Tests that need it call ``require_shared_data``.
-    """
-    env = os.environ.get(SHARED_DATA_ENV)
-    candidates = [Path(env)] if env else []
-    candidates.append(Path(__file__).resolve().parents[3] / "shared" / "data")
-    return next((c for c in candidates if (c / "README.md").is_file()), None)
 
 
 def require_shared_data(relative: str = "") -> Path:

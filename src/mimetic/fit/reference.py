@@ -21,6 +21,7 @@ from mimetic.fit.conform import Conformation, fit_conformation, landmark_model
 from mimetic.fit.register import Registration, TargetSurface, register, sample_surface
 from mimetic.head.model import DEFAULT_RESOLUTION, Head, make_head
 from mimetic.head.topology import build_topology
+from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 
 MIN_LANDMARKS = 8
@@ -48,6 +49,9 @@ class ReferenceFit:
     registration : Registration
     landmark_names : tuple of str
         The landmarks used, with their mapped target positions ``landmark_targets`` (k, 3).
+    flipped : bool
+        True when the target's faces wound inward (normals into the head, as after a mirroring
+        export): ``target`` has them turned the right way round.
     """
 
     head: Head
@@ -58,6 +62,7 @@ class ReferenceFit:
     registration: Registration
     landmark_names: tuple[str, ...]
     landmark_targets: np.ndarray
+    flipped: bool = False
 
 
 def projectable_vertices(head: Head) -> np.ndarray:
@@ -73,6 +78,18 @@ def projectable_vertices(head: Head) -> np.ndarray:
             if u < 0:
                 ok[rings.index[k]] = False
     return ok
+
+
+def winding_inverted(head: Head, target: Mesh) -> bool:
+    """True when ``target``'s normals point into the head: over the reference face, the normals of
+    the nearest target vertices mostly oppose the (aligned, conformed) reference skin's."""
+    skin = head.mesh.vertices[: head.n_skin]
+    face = projectable_vertices(head) & (build_topology(head.resolution).directions[:, 2] > 0.3)
+    used = np.unique(target.faces)
+    _, near = cKDTree(target.vertices[used]).query(skin[face])
+    target_normals = vertex_normals(target.vertices, target.faces)[used[near]]
+    skin_normals = vertex_normals(head.mesh.vertices, head.mesh.faces)[: head.n_skin][face]
+    return bool(np.median(np.einsum("kd,kd->k", skin_normals, target_normals)) < 0)
 
 
 def follow_skin(head: Head, skin: np.ndarray) -> np.ndarray:
@@ -148,6 +165,9 @@ def fit_reference(
     start = make_head(conformation.params, resolution)
     to_model = conformation.to_model
     target = mesh.with_vertices(to_model.apply(mesh.vertices))
+    flipped = winding_inverted(start, target)
+    if flipped:
+        target = Mesh(target.vertices, target.faces[:, ::-1], parts=target.parts, units=target.units)
     surface = sample_surface(target)
     skin_faces = start.mesh.faces[start.mesh.parts["skin"]]
     size = float(np.ptp(start.mesh.vertices[: start.n_skin, 1]))
@@ -172,4 +192,6 @@ def fit_reference(
         eye_centres[i] += (vertices[ids] - start.mesh.vertices[ids]).mean(axis=0)
     eye_centres.setflags(write=False)
     head = replace(start, mesh=start.mesh.with_vertices(vertices), eye_centres=eye_centres)
-    return ReferenceFit(head, start, conformation, target, surface, registration, tuple(names), mapped)
+    return ReferenceFit(
+        head, start, conformation, target, surface, registration, tuple(names), mapped, flipped
+    )

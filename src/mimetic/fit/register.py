@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import cg
+from scipy.sparse.linalg import cg, splu
 from scipy.spatial import cKDTree
 
 from mimetic.mesh.closest import closest_points
@@ -45,7 +45,7 @@ NORMAL_COS = 0.5  # pairs whose normals differ by more than 60° are ignored
 MIN_SAMPLES = 40_000  # target surface samples (more for sparse targets, subsampled for dense ones)
 MAX_SAMPLES = 200_000
 CG_RTOL = 1e-7
-CG_MAXITER = 3_000
+CG_MAXITER = 300
 OUTER_AREA_SHARE = 0.05  # components with less of the total area are inner parts (eyeballs, teeth)
 
 
@@ -164,13 +164,23 @@ def umbrella_laplacian(faces: np.ndarray, n: int) -> sp.csr_matrix:
 
 
 def _solve_spd(system: sp.csr_matrix, rhs: np.ndarray, guess: np.ndarray) -> np.ndarray:
-    """Solve the SPD ``system`` (n, n) for each column of ``rhs`` (n, 3), by Jacobi-preconditioned
-    conjugate gradients warm-started at ``guess``: between schedule steps the solution moves
-    little, so this is several times faster than a fresh sparse factorisation."""
+    """Solve the SPD ``system`` (n, n) for each column of ``rhs`` (n, 3).
+
+    Jacobi-preconditioned conjugate gradients warm-started at ``guess`` first: between schedule
+    steps the solution moves little, so on a head the target covers this takes tens of
+    iterations. Where much of the reference has no data (a face-only mask), the bi-Laplacian
+    leaves it badly conditioned and CG stalls; then a sparse LU factorisation (symmetric mode)
+    solves it directly, in about 0.2 s for 10k vertices.
+    """
     precondition = sp.diags(1.0 / system.diagonal())
     out = np.empty_like(rhs)
     for d in range(rhs.shape[1]):
-        out[:, d], _ = cg(system, rhs[:, d], x0=guess[:, d], rtol=CG_RTOL, maxiter=CG_MAXITER, M=precondition)
+        out[:, d], info = cg(
+            system, rhs[:, d], x0=guess[:, d], rtol=CG_RTOL, maxiter=CG_MAXITER, M=precondition
+        )
+        if info != 0:
+            lu = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+            return lu.solve(rhs)
     return out
 
 

@@ -15,7 +15,9 @@ dilute them):
 
 The reject gate fails a fit whose landmarks cannot be explained by a head (landmark RMS after the
 similarity and conformation fit above ``MAX_LANDMARK_RMS_PCT`` of the IOD), whose face coverage is
-below ``MIN_COVERAGE``, or whose mean residual is above ``MAX_MEAN_PCT``.
+below ``MIN_COVERAGE``, whose mean residual is above ``MAX_MEAN_PCT``, or whose face had to move
+more than ``MAX_DEFORMATION_PCT`` from the conformed reference to fit (the surface is not face-
+shaped: a box or a sphere can be covered, but only by flattening the nose).
 """
 
 from __future__ import annotations
@@ -32,8 +34,9 @@ from mimetic.head.topology import build_topology
 
 POOR_REGION_PCT = 1.0
 MAX_LANDMARK_RMS_PCT = 15.0
-MIN_COVERAGE = 0.6
+MIN_COVERAGE = 0.45  # MediaPipe's canonical face mask covers 66 % of the reference face
 MAX_MEAN_PCT = 1.5
+MAX_DEFORMATION_PCT = 4.0  # heads (ICT, MediaPipe, generated) need at most 1.4 %; a box 8 %
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,9 @@ class FitReport:
         Surface residual of the fitted reference, % of the head diagonal.
     coverage : float
         In [0, 1].
+    deformation_pct : float
+        Mean distance the registration moved the reference face from its conformed start, % of
+        the head diagonal: large when the surface is not shaped like a face (a box flattens it).
     landmark_rms_pct : float
         % of the inter-ocular distance.
     landmarks : dict name -> {"error_pct_iod": float, "error_units": float}
@@ -69,6 +75,7 @@ class FitReport:
     p95_pct: float
     max_pct: float
     coverage: float
+    deformation_pct: float
     landmark_rms_pct: float
     landmarks: dict
     regions: dict
@@ -83,7 +90,7 @@ class FitReport:
         lines = [
             f"surface residual: mean {self.mean_pct:.3f} %, p95 {self.p95_pct:.3f} %, "
             f"max {self.max_pct:.3f} % of the head diagonal ({self.head_diagonal:.4g} {self.units})",
-            f"face coverage: {100 * self.coverage:.1f} %; "
+            f"face coverage: {100 * self.coverage:.1f} %; deformation: {self.deformation_pct:.2f} %; "
             f"landmark RMS: {self.landmark_rms_pct:.2f} % of the IOD",
         ]
         if self.poor_regions:
@@ -114,6 +121,8 @@ def fit_report(fit: ReferenceFit, units: str) -> FitReport:
     front = build_topology(head.resolution).directions[:, 2] > 0.3
     face = front & projectable_vertices(head)
     coverage = float(matched[face].mean())
+    moved = np.linalg.norm(skin - fit.start.mesh.vertices[: head.n_skin], axis=1)
+    deformation_pct = float(100.0 * moved[face].mean() / diagonal_model)
     values = pct[matched]
     mean_pct = float(values.mean()) if len(values) else float("inf")
     p95_pct = float(np.percentile(values, 95)) if len(values) else float("inf")
@@ -146,6 +155,11 @@ def fit_report(fit: ReferenceFit, units: str) -> FitReport:
             f"only {100 * coverage:.0f} % of the reference face found the surface (at least "
             f"{100 * MIN_COVERAGE:.0f} % needed): is this a head, with the face where the landmarks say?"
         )
+    if deformation_pct > MAX_DEFORMATION_PCT:
+        reasons.append(
+            f"the reference face had to move {deformation_pct:.1f} % of the head diagonal to fit (limit "
+            f"{MAX_DEFORMATION_PCT} %): the surface is not shaped like a face where the landmarks are"
+        )
     if mean_pct > MAX_MEAN_PCT:
         reasons.append(
             f"mean surface residual {mean_pct:.2f} % of the head diagonal (limit {MAX_MEAN_PCT} %)"
@@ -157,6 +171,7 @@ def fit_report(fit: ReferenceFit, units: str) -> FitReport:
         p95_pct=p95_pct,
         max_pct=max_pct,
         coverage=coverage,
+        deformation_pct=deformation_pct,
         landmark_rms_pct=float(100 * np.sqrt(np.mean(errors**2)) / iod),
         landmarks=landmarks,
         regions=regions,

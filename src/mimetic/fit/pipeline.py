@@ -1,0 +1,165 @@
+"""``rig_head``: a user's head mesh and its landmarks in, a ``Rig`` on the user's own vertices out.
+
+The steps: check the mesh and its units; fit the reference (conformation and similarity from
+the landmarks, a winding check (a mirrored export has its faces turned inside out: they are
+turned back, with a warning), then non-rigid registration, ``fit.reference``); report the fit
+and gate it (``fit.report``); rebuild the rig recipe on the fitted reference
+(``rig.recipe.build_rig``); transfer it to the user's vertices (``fit.transfer``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from mimetic.errors import LandmarkError, MeshError, MimeticWarning
+from mimetic.fit.landmarks import Landmarks
+from mimetic.fit.reference import ReferenceFit, fit_reference
+from mimetic.fit.report import FitReport, fit_report
+from mimetic.fit.transfer import transfer_rig
+from mimetic.head.model import DEFAULT_RESOLUTION
+from mimetic.mesh.model import Mesh
+from mimetic.mesh.units import convert_units, detect_units
+from mimetic.mesh.validate import validate_mesh
+from mimetic.rig.model import Rig
+from mimetic.rig.recipe import build_rig
+
+MAX_VERTICES = 2_000_000
+
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True)
+class RigResult:
+    """What ``rig_head`` made.
+
+    Attributes
+    ----------
+    rig : Rig
+        On the user's vertices (same order and count), in the user's units.
+    report : FitReport
+    fit : ReferenceFit
+        The fitted reference (reference frame), for inspection and pictures.
+    flipped : bool
+        True when the user's faces wound inward and were turned (the rig's faces are turned too).
+    """
+
+    rig: Rig
+    report: FitReport
+    fit: ReferenceFit
+    flipped: bool
+
+
+def _checked_mesh(mesh: Mesh) -> Mesh:
+    if mesh.n_vertices > MAX_VERTICES:
+        raise MeshError(
+            f"the mesh has {mesh.n_vertices:,} vertices; rig_head takes at most {MAX_VERTICES:,}. "
+            "Decimate it first (e.g. Blender's Decimate modifier or trimesh's simplify_quadric_decimation)."
+        )
+    report = validate_mesh(mesh)
+    if report.errors:
+        raise MeshError("the mesh cannot be rigged: " + "; ".join(report.errors))
+    if mesh.units is None:
+        units = report.detected_units or detect_units(mesh.vertices)
+        warnings.warn(
+            f"the mesh does not say its units; its size suggests {units!r} (pass units= to load_mesh "
+            "or --units to say otherwise)",
+            MimeticWarning,
+            stacklevel=3,
+        )
+        mesh = Mesh(mesh.vertices, mesh.faces, parts=mesh.parts, colors=mesh.colors, units=units)
+    return mesh
+
+
+def rig_head(
+    mesh: Mesh,
+    landmarks: Landmarks,
+    *,
+    resolution: int = DEFAULT_RESOLUTION,
+    force: bool = False,
+    progress: Progress | None = None,
+    metadata: dict | None = None,
+) -> RigResult:
+    """Rig ``mesh`` by fitting the reference head to it and transferring the reference's rig.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The user's head: any vertex count up to ``MAX_VERTICES``, any units (known or detected),
+        any axis-aligned orientation, with or without eyeballs, teeth and a mouth cavity.
+    landmarks : Landmarks
+        At least 8 project landmarks on ``mesh`` (from ``read_landmarks`` or ``auto_landmarks``).
+    resolution : int
+        Skin vertex count of the reference head.
+    force : bool
+        Return the rig even when the report's gate rejects the mesh.
+    progress : callable(step, done, total), optional
+    metadata : dict, optional
+        Extra provenance for ``Rig.metadata`` (e.g. the source file).
+
+    Raises
+    ------
+    MeshError
+        The mesh is broken or too large, or (without ``force``) the fit says it is not a head.
+    LandmarkError
+        Too few, unknown or degenerate landmarks.
+    """
+    mesh = _checked_mesh(mesh)
+    if len(landmarks.names) < 8:
+        raise LandmarkError(f"got {len(landmarks.names)} landmarks; rigging needs at least 8")
+    points = landmarks.positions
+    if landmarks.units is not None and landmarks.units != mesh.units:
+        points = convert_units(points, landmarks.units, mesh.units)
+    fit = fit_reference(
+        mesh,
+        list(landmarks.names),
+        points,
+        landmark_weights=np.maximum(landmarks.confidence, 0.05),
+        resolution=resolution,
+        progress=progress,
+    )
+    flipped = fit.flipped
+    if flipped:
+        warnings.warn(
+            "the mesh's faces wind clockwise seen from outside (normals point into the head, as after "
+            "a mirroring export); the rig uses them turned the right way round",
+            MimeticWarning,
+            stacklevel=2,
+        )
+        mesh = Mesh(
+            mesh.vertices, mesh.faces[:, ::-1], parts=mesh.parts, colors=mesh.colors, units=mesh.units
+        )
+    report = fit_report(fit, mesh.units)
+    if not report.accepted and not force:
+        raise MeshError(
+            "this does not look like a head the reference can fit: "
+            + "; ".join(report.reasons)
+            + ". If you are sure, rig it anyway with force=True (CLI: --force)."
+        )
+    if progress is not None:
+        progress("rig", 0, 1)
+    reference_rig = build_rig(fit.head)
+    rig = transfer_rig(
+        reference_rig,
+        mesh,
+        fit.conformation.to_model,
+        metadata={
+            "landmarks": landmarks.source,
+            "fit": {
+                "mean_pct": report.mean_pct,
+                "max_pct": report.max_pct,
+                "coverage": report.coverage,
+                "accepted": report.accepted,
+            },
+            "params": report.params,
+            "resolution": resolution,
+            "flipped_winding": flipped,
+            **(metadata or {}),
+        },
+    )
+    if progress is not None:
+        progress("rig", 1, 1)
+    return RigResult(rig, report, fit, flipped)

@@ -1,0 +1,362 @@
+"""End-to-end tests of ``rig_head``: fit the reference, transfer its rig, gate bad input.
+
+Ground truth comes from generated heads: a random head built at another resolution (another
+topology) has its own recipe rig, which the transferred rig must reproduce (skin weights within
+the Maskle paper's 2.63 % mean weight difference, the same regions, the lips kept apart). Real
+faces (ICT-FaceKit, MediaPipe's canonical mesh) come from ../shared/data.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mimetic.engines import make_engine
+from mimetic.errors import LandmarkError, MeshError, MimeticWarning
+from mimetic.fit.landmarks import MEDIAPIPE_LANDMARKS, Landmarks
+from mimetic.fit.pipeline import MAX_VERTICES, RigResult, rig_head
+from mimetic.head.landmarks import IBUG68
+from mimetic.head.model import Head, make_head
+from mimetic.head.params import HeadParams
+from mimetic.mesh.geometry import vertex_normals
+from mimetic.mesh.model import Mesh
+from mimetic.rig.recipe import build_rig
+from mimetic.testing import require_shared_data
+
+FIT_NAMES = "no pupils, jaw contour or menton: the points a user would click"
+
+
+def _names(head: Head) -> list[str]:
+    return [n for n in head.landmarks if not n.startswith(("pupil", "jaw_")) and n != "menton"]
+
+
+def _landmarks(head: Head, mesh: Mesh | None = None, transform=lambda p: p, units: str = "cm") -> Landmarks:
+    names = _names(head)
+    points = transform(head.landmark_positions(names))
+    return Landmarks(tuple(names), points, np.ones(len(names)), units, "test")
+
+
+@pytest.fixture(scope="module")
+def target() -> Head:
+    """A random head at another resolution than the reference: another topology, known anatomy."""
+    return make_head(HeadParams.random(1), 4_000)
+
+
+@pytest.fixture(scope="module")
+def rigged(target: Head) -> RigResult:
+    return rig_head(target.mesh, _landmarks(target))
+
+
+# ------------------------------------------------------------------------- generated heads
+
+
+def test_rig_lives_on_the_users_vertices(target: Head, rigged: RigResult) -> None:
+    rig = rigged.rig
+    np.testing.assert_array_equal(rig.mesh.vertices, target.mesh.vertices)
+    np.testing.assert_array_equal(rig.mesh.faces, target.mesh.faces)
+    assert rig.units == "cm" and not rigged.flipped
+    assert rig.metadata["source_rotation"] == ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    truth_scale = build_rig(target).scale
+    assert rig.scale == pytest.approx(truth_scale, rel=0.03)
+
+
+def test_fit_residual_is_small(rigged: RigResult) -> None:
+    report = rigged.report
+    assert report.accepted, report.reasons
+    assert report.mean_pct < 0.05 and report.max_pct < 1.0  # % of the head diagonal
+    assert report.coverage > 0.95
+    assert report.landmark_rms_pct < 3.0
+
+
+def test_skin_weights_match_the_targets_own_rig(target: Head, rigged: RigResult) -> None:
+    """Mean absolute weight difference per bone (the Maskle paper's metric) over the skin."""
+    truth = build_rig(target).skin_weights.toarray()[: target.n_skin]
+    got = rigged.rig.skin_weights.toarray()[: target.n_skin]
+    per_bone = 100 * np.abs(truth - got).mean(axis=0)
+    assert per_bone.mean() < 1.0  # the Maskle paper: 2.63 % mean
+    assert per_bone.max() < 2.63
+    sums = rigged.rig.skin_weights.sum(axis=1)
+    np.testing.assert_allclose(np.asarray(sums).ravel(), 1.0, atol=1e-9)
+
+
+def test_regions_match_the_targets_own_regions(target: Head, rigged: RigResult) -> None:
+    truth = build_rig(target).regions
+    for name in ("forehead", "nose", "eyelid_upper_L", "eyelid_lower_R", "chin", "upper_lip", "lower_lip"):
+        a, b = set(truth[name].tolist()), set(rigged.rig.regions[name].tolist())
+        assert len(a & b) / len(a | b) > 0.8, name
+
+
+def test_lips_stay_apart_away_from_the_corners(target: Head, rigged: RigResult) -> None:
+    """No visible upper-lip vertex follows the jaw and no lower-lip vertex stays with the head,
+    except at the mouth corners, where the lips meet and the split is a matter of a vertex. (The
+    regions also hold the first loops of the mouth cavity, hidden 1.5 cm behind the lips, whose
+    upper and lower halves blend.)"""
+    truth = build_rig(target)
+    rig = rigged.rig
+    v = target.mesh.vertices
+    corners = target.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
+    width = np.linalg.norm(corners[0] - corners[1])
+    far = np.linalg.norm(v[:, None, :] - corners[None], axis=2).min(axis=1) > 0.2 * width
+    far[target.n_skin :] = False
+    jaw = rig.skin_weights[:, rig.bone_index("jaw")].toarray().ravel()
+    upper = truth.regions["upper_lip"][far[truth.regions["upper_lip"]]]
+    lower = truth.regions["lower_lip"][far[truth.regions["lower_lip"]]]
+    assert jaw[upper].max() < 0.05
+    assert jaw[lower].min() > 0.95
+    assert not np.intersect1d(rig.regions["upper_lip"], rig.regions["lower_lip"]).size
+
+
+def test_separate_parts_attach_to_their_bones(target: Head, rigged: RigResult) -> None:
+    rig = rigged.rig
+    for part, bone in (
+        ("eye_L", "eye_L"),
+        ("eye_R", "eye_R"),
+        ("teeth_lower", "jaw"),
+        ("teeth_upper", "head"),
+    ):
+        ids = target.mesh.part_vertices(part)
+        weights = rig.skin_weights[ids, rig.bone_index(bone)].toarray().ravel()
+        np.testing.assert_allclose(weights, 1.0, err_msg=part)
+    eye = rig.bone("eye_L")
+    np.testing.assert_allclose(eye.head, target.eye_centres[0], atol=0.02)  # sphere fit to the eyeball
+    assert eye.length == pytest.approx(target.eye_radius, rel=0.05)
+
+
+def test_transferred_rig_poses_like_the_targets_own(target: Head, rigged: RigResult) -> None:
+    """jaw_open and a smile move the same vertices the same way within a few % of the motion."""
+    truth = build_rig(target)
+    for channel, value in (("jaw_open", 0.3), ("zygomatic_major_L", 1.0)):
+        moves = []
+        for rig in (truth, rigged.rig):
+            engine = make_engine(rig, "wire")
+            pose = np.array([c.default for c in rig.channels])
+            pose[rig.channel_index(channel)] = value
+            moves.append(engine.deform(pose) - engine.deform(np.array([c.default for c in rig.channels])))
+        skin = slice(0, target.n_skin)
+        scale = np.linalg.norm(moves[0][skin], axis=1).max()
+        error = np.linalg.norm(moves[0][skin] - moves[1][skin], axis=1)
+        assert np.percentile(error, 99) < 0.15 * scale, channel
+
+
+# ------------------------------------------------------------------------- orientation and units
+
+
+def test_millimetres_facing_minus_z_give_the_same_rig(target: Head, rigged: RigResult) -> None:
+    turn = np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])  # looks down -Z
+    mesh = Mesh(10 * target.mesh.vertices @ turn.T, target.mesh.faces, units="mm")
+    result = rig_head(mesh, _landmarks(target, transform=lambda p: 10 * p @ turn.T, units="mm"))
+    rig = result.rig
+    assert rig.units == "mm" and rig.scale == pytest.approx(10 * rigged.rig.scale, rel=1e-6)
+    np.testing.assert_allclose(rig.mesh.vertices, 10 * target.mesh.vertices, atol=1e-9)
+    np.testing.assert_allclose(np.array(rig.metadata["source_rotation"]), turn.T)
+    a = rig.skin_weights.toarray()
+    b = rigged.rig.skin_weights.toarray()
+    assert np.abs(a - b).mean() < 1e-3
+
+
+def test_z_up_mesh_is_turned_upright(target: Head) -> None:
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # +Y up becomes +Z up
+    mesh = Mesh(target.mesh.vertices @ turn.T, target.mesh.faces, units="cm")
+    result = rig_head(mesh, _landmarks(target, transform=lambda p: p @ turn.T))
+    np.testing.assert_allclose(result.rig.mesh.vertices, target.mesh.vertices, atol=1e-9)
+
+
+def test_mirrored_mesh_is_detected_and_its_winding_fixed(target: Head) -> None:
+    """A mirroring export negates x without rewinding: normals point inward."""
+    mesh = Mesh(target.mesh.vertices * [-1.0, 1.0, 1.0], target.mesh.faces, units="cm")
+    names = _names(target)
+    swapped = [n[:-1] + {"L": "R", "R": "L"}[n[-1]] if n[-2:] in ("_L", "_R") else n for n in names]
+    marks = Landmarks(
+        tuple(swapped), target.landmark_positions(names) * [-1, 1, 1], np.ones(len(names)), "cm", "t"
+    )
+    with pytest.warns(MimeticWarning, match="wind clockwise"):
+        result = rig_head(mesh, marks)
+    assert result.flipped and result.report.accepted
+    np.testing.assert_array_equal(result.rig.mesh.faces, target.mesh.faces[:, ::-1])
+    normals = vertex_normals(result.rig.mesh.vertices, result.rig.mesh.faces)
+    tip = target.landmarks["nose_tip"]
+    assert normals[tip, 2] > 0.5  # outward again
+
+
+def test_unknown_units_are_detected_with_a_warning(target: Head) -> None:
+    mesh = Mesh(10 * target.mesh.vertices, target.mesh.faces)  # mm, undeclared
+    with pytest.warns(MimeticWarning, match="units"):
+        result = rig_head(mesh, _landmarks(target, transform=lambda p: 10 * p, units=None))
+    assert result.rig.units == "mm"
+
+
+# ------------------------------------------------------------------------- scans
+
+
+def test_open_face_only_scan_fits(target: Head) -> None:
+    """Only the front of the skin (a face scan with holes at the eyes and mouth, no back)."""
+    v, f = target.mesh.vertices, target.mesh.faces
+    keep = f[(v[f][:, :, 2] > 2.0).all(axis=1) & (f < target.n_skin).all(axis=1)]
+    used, inverse = np.unique(keep, return_inverse=True)
+    mesh = Mesh(v[used], inverse.reshape(-1, 3), units="cm")
+    names = _names(target)
+    index = {int(u): i for i, u in enumerate(used)}
+    names = [n for n in names if target.landmarks[n] in index]
+    marks = Landmarks(tuple(names), target.landmark_positions(names), np.ones(len(names)), "cm", "t")
+    result = rig_head(mesh, marks)
+    assert result.report.accepted and result.report.mean_pct < 0.1
+    assert result.rig.n_vertices == len(used)
+
+
+def test_noisy_scan_fits_with_a_larger_residual(target: Head, rigged: RigResult) -> None:
+    noise = np.random.default_rng(0).normal(0, 0.05, target.mesh.vertices.shape)  # 0.5 mm
+    mesh = Mesh(target.mesh.vertices + noise, target.mesh.faces, units="cm")
+    result = rig_head(mesh, _landmarks(target))
+    assert result.report.accepted
+    assert rigged.report.mean_pct < result.report.mean_pct < 0.5
+    a = result.rig.skin_weights.toarray()[: target.n_skin]
+    b = rigged.rig.skin_weights.toarray()[: target.n_skin]
+    assert 100 * np.abs(a - b).mean() < 1.0
+
+
+# ------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize("shape", ["cube", "torus"])
+def test_non_heads_are_rejected(target: Head, shape: str) -> None:
+    import trimesh
+
+    lo, hi = target.mesh.vertices.min(axis=0), target.mesh.vertices.max(axis=0)
+    if shape == "cube":
+        body = trimesh.creation.box(extents=hi - lo)
+    else:
+        body = trimesh.creation.torus(major_radius=0.35 * (hi - lo)[1], minor_radius=0.12 * (hi - lo)[1])
+    mesh = Mesh(np.asarray(body.vertices) + (hi + lo) / 2, np.asarray(body.faces), units="cm")
+    with pytest.raises(MeshError, match="does not look like a head"):
+        rig_head(mesh, _landmarks(target))
+
+
+def test_too_few_landmarks(target: Head) -> None:
+    marks = _landmarks(target).subset(["nose_tip", "eye_outer_corner_L", "eye_outer_corner_R", "menton"][:3])
+    with pytest.raises(LandmarkError, match="at least 8"):
+        rig_head(target.mesh, marks)
+
+
+def test_broken_and_huge_meshes_are_refused(target: Head) -> None:
+    v = target.mesh.vertices.copy()
+    v[5] = np.nan
+    with pytest.raises(MeshError, match="cannot be rigged"):
+        rig_head(Mesh(v, target.mesh.faces, units="cm"), _landmarks(target))
+    huge = Mesh(np.zeros((MAX_VERTICES + 1, 3)), np.array([[0, 1, 2]]), units="cm")
+    with pytest.raises(MeshError, match="Decimate"):
+        rig_head(huge, _landmarks(target))
+
+
+# ------------------------------------------------------------------------- real faces
+
+
+@pytest.fixture(scope="module")
+def ict() -> tuple[Mesh, Landmarks, dict]:
+    folder = require_shared_data("ict-facekit")
+    data = np.load(folder / "neutral.npz")
+    meta = json.loads((folder / "meta.json").read_text())
+    mesh = Mesh(data["vertices"].astype(np.float64), data["faces"].astype(np.int64), units="cm")
+    ids = np.array(meta["landmarks_68"]["vertex_indices"])
+    use = [i for i in range(17, 68) if i not in (60, 64)]  # no jaw contour; 61/65 repeat the corners
+    marks = Landmarks(tuple(IBUG68[i] for i in use), mesh.vertices[ids[use]], np.ones(len(use)), "cm", "ict")
+    return mesh, marks, meta
+
+
+@pytest.fixture(scope="module")
+def ict_rigged(ict) -> RigResult:
+    mesh, marks, _ = ict
+    return rig_head(mesh, marks)
+
+
+def test_ict_head_rigs_with_a_tight_fit(ict, ict_rigged: RigResult) -> None:
+    mesh, _, meta = ict
+    report = ict_rigged.report
+    assert report.accepted
+    assert report.mean_pct < 0.05 and report.p95_pct < 0.1  # % of the head diagonal
+    assert report.coverage > 0.95
+    rig = ict_rigged.rig
+    np.testing.assert_array_equal(rig.mesh.vertices, mesh.vertices)
+    # ICT's eyeballs (its "Eyeball left/right" ranges) follow the eye bones
+    for side, part in (("L", "Eyeball left"), ("R", "Eyeball right")):
+        first, last = next(p["vertex_range"] for p in meta["parts"] if p["name"] == part)
+        ids = np.arange(first, last + 1)
+        weights = rig.skin_weights[ids, rig.bone_index(f"eye_{side}")].toarray().ravel()
+        assert np.mean(weights > 0.99) > 0.95, part
+
+
+def test_ict_jaw_opens_and_lips_part(ict_rigged: RigResult) -> None:
+    rig = ict_rigged.rig
+    engine = make_engine(rig, "wire")
+    rest = np.array([c.default for c in rig.channels])
+    pose = rest.copy()
+    pose[rig.channel_index("jaw_open")] = 0.3
+    moved = engine.deform(pose) - engine.deform(rest)
+    chin = rig.landmark_positions(["pogonion"])  # noqa: F841 (landmark exists)
+    lower = rig.regions["lower_lip"]
+    upper = rig.regions["upper_lip"]
+    assert moved[lower, 1].mean() < -0.5  # cm: the lower lip drops
+    assert abs(moved[upper, 1].mean()) < 0.2 * abs(moved[lower, 1].mean())
+    forehead = rig.regions["forehead"]
+    assert np.abs(moved[forehead]).max() < 1e-9
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ict_identities_rig(ict, seed: int) -> None:
+    """ICT's identity modes make plausible new heads: each must fit as tightly as the neutral."""
+    mesh, marks, _ = ict
+    folder = require_shared_data("ict-facekit")
+    modes = np.load(folder / "identities.npz")
+    w = np.random.default_rng(seed).normal(size=20)
+    delta = sum(w[k] * modes[f"identity{k:03d}"].astype(np.float64) for k in range(20))
+    other = Mesh(mesh.vertices + delta, mesh.faces, units="cm")
+    ids = [int(np.argmin(np.linalg.norm(mesh.vertices - p, axis=1))) for p in marks.positions]
+    moved = Landmarks(marks.names, other.vertices[ids], marks.confidence, "cm", "ict-identity")
+    report = rig_head(other, moved).report
+    assert report.accepted and report.mean_pct < 0.05
+
+
+def test_mediapipe_canonical_face_mask_rigs() -> None:
+    """MediaPipe's 468-vertex canonical face: a sparse, face-only mask in cm."""
+    folder = require_shared_data("mediapipe")
+    data = np.load(folder / "canonical.npz")
+    mesh = Mesh(data["vertices"].astype(np.float64), data["faces"].astype(np.int64), units="cm")
+    names = [n for n, i in MEDIAPIPE_LANDMARKS.items() if i < mesh.n_vertices]
+    marks = Landmarks(
+        tuple(names), mesh.vertices[[MEDIAPIPE_LANDMARKS[n] for n in names]], np.ones(len(names)), "cm", "mp"
+    )
+    result = rig_head(mesh, marks)
+    assert result.report.accepted
+    assert result.report.mean_pct < 0.2
+    assert result.rig.n_vertices == 468
+    jaw = result.rig.skin_weights[:, result.rig.bone_index("jaw")].toarray().ravel()
+    assert jaw[MEDIAPIPE_LANDMARKS["menton"]] > 0.9 and jaw[MEDIAPIPE_LANDMARKS["nasion"]] < 0.05
+
+
+def test_fitted_reference_lands_on_the_corresponding_points(target: Head, rigged: RigResult) -> None:
+    """Known correspondence: both heads sample one parametric surface, so reference vertex i belongs
+    where the target's surface has i's chart coordinate. The registration must bring the face there
+    (and closer than the conformed start, which only matches the landmarks)."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    from mimetic.head.shape import skin_geometry
+    from mimetic.head.topology import build_topology
+
+    fit = rigged.fit
+    params = target.params
+    reference_chart = skin_geometry(build_topology(fit.head.resolution), params).chart
+    target_chart = skin_geometry(build_topology(target.resolution), params).chart
+    front_t = build_topology(target.resolution).directions[:, 2] > 0.0
+    truth_at = LinearNDInterpolator(target_chart[front_t], target.mesh.vertices[: target.n_skin][front_t])
+    face = build_topology(fit.head.resolution).directions[:, 2] > 0.3
+    truth = truth_at(reference_chart[face])
+    ok = np.all(np.isfinite(truth), axis=1)
+    to_target = fit.conformation.to_model.inverse()
+    fitted = to_target.apply(fit.head.mesh.vertices[: fit.head.n_skin][face][ok])
+    start = to_target.apply(fit.start.mesh.vertices[: fit.head.n_skin][face][ok])
+    height = np.ptp(target.mesh.vertices[: target.n_skin, 1])
+    error = 100 * np.linalg.norm(fitted - truth[ok], axis=1) / height
+    before = 100 * np.linalg.norm(start - truth[ok], axis=1) / height
+    assert error.mean() < 0.6 and np.percentile(error, 95) < 1.2  # % of the head height
+    assert error.mean() < before.mean()

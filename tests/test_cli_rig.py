@@ -1,0 +1,92 @@
+"""End-to-end tests of ``mimetic rig``: a mesh and landmarks in, a rig, a report and a picture out."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+from typer.testing import CliRunner
+
+from mimetic.cli import app
+from mimetic.head.model import make_head
+from mimetic.head.params import HeadParams
+from mimetic.mesh.io import save_mesh
+from mimetic.rig.format import load_rig
+
+runner = CliRunner()
+
+
+def run(*args):
+    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+
+
+@pytest.fixture(scope="module")
+def head_files(tmp_path_factory):
+    """A random generated head in millimetres (OBJ) and a landmark file in iBUG and project names."""
+    folder = tmp_path_factory.mktemp("rig")
+    head = make_head(HeadParams.random(4), 3_000)
+    mesh = head.mesh.with_vertices(10 * head.mesh.vertices)
+    mesh = type(mesh)(mesh.vertices, mesh.faces, units="mm")
+    mesh_file = save_mesh(mesh, folder / "head.obj")
+    names = ["nose_tip", "subnasale", "glabella", "pogonion", "upper_lip_top", "lower_lip_bottom"]
+    marks = {n: (head.landmark_positions([n])[0]).tolist() for n in names}
+    from mimetic.head.landmarks import IBUG68
+
+    for k in (37, 40, 43, 46, 49, 55, 18, 27):  # 1-based iBUG numbers: eye corners, mouth corners, brows
+        marks[f"ibug68_{k:02d}"] = head.landmark_positions([IBUG68[k - 1]])[0].tolist()
+    lm_file = folder / "lm.json"
+    lm_file.write_text(json.dumps({"units": "cm", "landmarks": marks}))
+    return head, mesh_file, lm_file, folder
+
+
+def test_rig_writes_rig_report_and_picture(head_files):
+    head, mesh_file, lm_file, folder = head_files
+    out = folder / "head.mrig"
+    result = run("rig", mesh_file, "--landmarks", lm_file, "-o", out)
+    assert result.exit_code == 0, result.output
+    assert "accepted" in result.output
+    rig = load_rig(out)
+    assert rig.units == "mm" and rig.n_vertices == head.mesh.n_vertices
+    np.testing.assert_allclose(rig.mesh.vertices, 10 * head.mesh.vertices, atol=1e-4)  # OBJ text precision
+    report = json.loads((folder / "head.fit.json").read_text())
+    assert report["accepted"] and report["mean_pct"] < 0.1 and report["units"] == "mm"
+    image = np.asarray(Image.open(folder / "head.fit.png"))
+    assert image.ndim == 3 and image.std() > 10
+    # every other command takes the rig
+    posed = folder / "joy.png"
+    assert run("pose", out, "--expr", "joy", "--size", "64", "-o", posed).exit_code == 0
+    info = run("info", out, "--json")
+    assert info.exit_code == 0 and '"kind": "rig"' in info.output
+
+
+def test_rig_refuses_both_landmark_sources(head_files, tmp_path):
+    _, mesh_file, lm_file, _ = head_files
+    result = run("rig", mesh_file, "--landmarks", lm_file, "--auto-landmarks", "-o", tmp_path / "x.mrig")
+    assert result.exit_code == 1 and "not both" in result.output
+    assert not (tmp_path / "x.mrig").exists()
+
+
+def test_rig_refuses_a_box_and_writes_nothing(tmp_path, head_files):
+    import trimesh
+
+    head, _, lm_file, _ = head_files
+    lo, hi = 10 * head.mesh.vertices.min(axis=0), 10 * head.mesh.vertices.max(axis=0)
+    box = trimesh.creation.box(extents=hi - lo)
+    box.apply_translation((hi + lo) / 2)
+    mesh_file = tmp_path / "box.stl"
+    box.export(mesh_file)
+    out = tmp_path / "box.mrig"
+    out.write_bytes(b"a good old file")
+    result = run("rig", mesh_file, "--units", "mm", "--landmarks", lm_file, "-o", out)
+    assert result.exit_code == 1 and "does not look like a head" in result.output
+    assert out.read_bytes() == b"a good old file"
+
+
+def test_rig_names_a_bad_landmark_file(head_files, tmp_path):
+    _, mesh_file, _, _ = head_files
+    bad = tmp_path / "lm.json"
+    bad.write_text('{"units": "cm", "landmarks": {"nose_tip": [0, 0, 1]}}')
+    result = run("rig", mesh_file, "--landmarks", bad, "-o", tmp_path / "x.mrig")
+    assert result.exit_code == 1 and "at least 8" in result.output
