@@ -22,7 +22,7 @@ import pytest
 import trimesh
 
 from mimetic.errors import LandmarkError
-from mimetic.fit.detect import MEDIAPIPE_POINTS, N_LANDMARKS, FaceDetection, MissingExtraError, detect_face
+from mimetic.fit.detect import MEDIAPIPE_POINTS, N_LANDMARKS, FaceDetection, detect_face
 from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.model import Mesh
@@ -46,15 +46,6 @@ TOL_CHIN_PCT = 10.0  # % IOD, all views
 # fixtures
 
 
-@pytest.fixture(scope="module")
-def mediapipe_ready() -> None:
-    """Skip when the [track] extra is missing, except on CI (CI=true), where it fails."""
-    try:
-        detect_face(np.zeros((8, 8, 3), np.uint8))
-    except MissingExtraError as error:
-        if ON_CI:
-            pytest.fail(f"{error} (CI=true: the [track] extra is required on CI)")
-        pytest.skip(str(error))
 
 
 @pytest.fixture(scope="module")

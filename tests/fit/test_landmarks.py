@@ -34,7 +34,6 @@ import trimesh
 from mimetic.errors import LandmarkError, MeshError, MissingExtraError
 from mimetic.fit import detect
 from mimetic.fit import landmarks as lm_module
-from mimetic.fit.detect import detect_face
 from mimetic.fit.landmarks import (
     MEDIAPIPE_LANDMARKS,
     MIN_LANDMARKS,
@@ -531,15 +530,6 @@ def test_auto_landmarks_rejects_bad_meshes_and_arguments():
 # automatic landmarks with MediaPipe
 
 
-@pytest.fixture(scope="module")
-def mediapipe_ready() -> None:
-    """Skip when the [track] extra is missing, except on CI (CI=true), where it fails."""
-    try:
-        detect_face(np.zeros((8, 8, 3), np.uint8))
-    except MissingExtraError as error:
-        if ON_CI:
-            pytest.fail(f"{error} (CI=true: the [track] extra is required on CI)")
-        pytest.skip(str(error))
 
 
 @pytest.fixture(scope="module")

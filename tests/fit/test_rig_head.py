@@ -360,3 +360,19 @@ def test_fitted_reference_lands_on_the_corresponding_points(target: Head, rigged
     before = 100 * np.linalg.norm(start - truth[ok], axis=1) / height
     assert error.mean() < 0.6 and np.percentile(error, 95) < 1.2  # % of the head height
     assert error.mean() < before.mean()
+
+
+def test_ict_rigs_from_automatic_landmarks(ict, ict_rigged: RigResult, mediapipe_ready) -> None:
+    """The whole automatic path on a real face: MediaPipe landmarks, fit, rig."""
+    from mimetic.fit.landmarks import auto_landmarks
+
+    mesh, _, _ = ict
+    marks = auto_landmarks(mesh)
+    assert len(marks) >= 30
+    result = rig_head(mesh, marks)
+    assert result.report.accepted and result.report.mean_pct < 0.05
+    # the same anatomy as with ICT's own landmark vertices: on the face (ICT's vertices 0-9408)
+    # the skin weights differ by less than the Maskle paper's mean error (2.63 %, per bone)
+    a = result.rig.skin_weights.toarray()[:9409]
+    b = ict_rigged.rig.skin_weights.toarray()[:9409]
+    assert 100 * np.abs(a - b).mean(axis=0).mean() < 2.63
