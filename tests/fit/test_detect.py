@@ -46,8 +46,6 @@ TOL_CHIN_PCT = 10.0  # % IOD, all views
 # fixtures
 
 
-
-
 @pytest.fixture(scope="module")
 def renderer():
     renderer = Renderer()  # EGL, else the CPU rasterizer (with one MimeticWarning)

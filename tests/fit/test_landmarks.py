@@ -530,8 +530,6 @@ def test_auto_landmarks_rejects_bad_meshes_and_arguments():
 # automatic landmarks with MediaPipe
 
 
-
-
 @pytest.fixture(scope="module")
 def renderer():
     renderer = Renderer()  # EGL, else the CPU rasterizer (with one MimeticWarning)
