@@ -13,10 +13,12 @@ faults of fresh 80 MB batch outputs are not measured. Everything is deterministi
 the same numbers up to timing noise (on a 2-core machine, other busy processes make OpenBLAS's
 threads wait; the load average is printed).
 
-The bandwidth limit of a single frame is the bytes ``evaluate`` reads (``plan(a).bytes_read``:
-the float32 neutral plus the stored ranges and blocks it touches) divided by a read bandwidth
-measured in the same run (``np.sum`` over 256 MB). The "nonzero-only" rows count only the
-non-zero delta components of the active channels, the least any float32 layout must read.
+The bandwidth limit of a single frame (the goal) is the bytes any float32 evaluation must move,
+``nonzero_bytes``: the (n, 3) output (as many bytes as the neutral it starts from) plus the
+non-zero delta components of the active channels and correctives, divided by a read bandwidth
+measured in the same run (``np.sum`` over 256 MB). The "layout" rows divide instead the bytes
+``evaluate`` actually reads (``plan(a).bytes_read``: the float32 neutral plus the stored ranges or
+blocks it touches, zero padding included), i.e. how fast the layout streams its own data.
 """
 
 from __future__ import annotations
@@ -192,7 +194,8 @@ def read_bandwidth(rounds: int) -> float:
 
 
 def nonzero_bytes(basis: Basis, a: np.ndarray) -> int:
-    """float32 bytes of the neutral and of the non-zero delta components of the active terms."""
+    """The least bytes a float32 frame ``a`` (c,) must move: the (n, 3) output (the size of the neutral)
+    and the non-zero delta components of the active channels and correctives."""
     deltas = [basis.deltas[j] for j in np.flatnonzero(a)]
     deltas += [
         k.delta
@@ -284,34 +287,35 @@ def bench(basis: Basis, label: str, args: argparse.Namespace, bandwidth: float) 
                 )
             )
 
-    # 3. a frame against its bandwidth limit: the bytes it reads ÷ the measured read bandwidth
-    limits = {}
+    # 3. a frame against its bandwidth limit (the bytes it must move ÷ the measured read bandwidth),
+    # and against the bytes its layout reads
+    fractions = {}
     for dtype, cb in compact.items():
         name = np.dtype(dtype).name
         for case, a in (("realistic frame", frame), ("all channels", everything)):
             t = times[dtype, case]
-            read = cb.plan(a).bytes_read
-            limits[dtype, case] = read / bandwidth
-            rows.append(
-                (
-                    f"{label}: compact {name}, {case}, vs its bandwidth limit",
-                    t,
-                    f"{read / t / 1e9:.1f} GB/s effective",
-                    f"{read / 1e3:,.0f} kB ÷ {bandwidth / 1e9:.1f} GB/s",
-                    read / bandwidth,
-                )
-            )
             if dtype == np.float32:
                 least = nonzero_bytes(basis, a)
+                fractions[case] = least / bandwidth / t
                 rows.append(
                     (
-                        f"{label}: compact {name}, {case}, vs nonzero-only limit",
+                        f"{label}: compact {name}, {case}, vs its bandwidth limit",
                         t,
                         f"{least / t / 1e9:.1f} GB/s effective",
                         f"{least / 1e3:,.0f} kB ÷ {bandwidth / 1e9:.1f} GB/s",
                         least / bandwidth,
                     )
                 )
+            read = cb.plan(a).bytes_read
+            rows.append(
+                (
+                    f"{label}: compact {name}, {case}, vs the bytes its layout reads",
+                    t,
+                    f"{read / t / 1e9:.1f} GB/s effective",
+                    f"{read / 1e3:,.0f} kB ÷ {bandwidth / 1e9:.1f} GB/s",
+                    read / bandwidth,
+                )
+            )
     cb32 = compact[np.float32]
     notes = [
         f"{label}: {n:,} vertices, {c} channels, {len(basis.correctives)} correctives, non-zero deltas in "
@@ -330,8 +334,8 @@ def bench(basis: Basis, label: str, args: argparse.Namespace, bandwidth: float) 
     goals = {
         "fps": 1 / times[np.float32, "realistic frame"],
         "fps_all": 1 / times[np.float32, "all channels"],
-        "fraction": limits[np.float32, "realistic frame"] / times[np.float32, "realistic frame"],
-        "fraction_all": limits[np.float32, "all channels"] / times[np.float32, "all channels"],
+        "fraction": fractions["realistic frame"],
+        "fraction_all": fractions["all channels"],
         "batch": max(1 / times[np.float32, f] for f in batch_sizes),
     }
     return rows, {"notes": notes, "goals": goals}

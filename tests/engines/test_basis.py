@@ -391,6 +391,31 @@ def test_compact_corrective_acts_only_when_both_channels_are_nonzero(dtype):
         assert np.abs(part).max() > 10 * bound  # the corrective does act
 
 
+@pytest.mark.parametrize("pair", [(3, 4), (4, 3), (6, 6)])
+def test_compact_corrective_is_read_exactly_when_both_channels_are_nonzero(pair):
+    """Whichever channel the corrective names first (or both, for a quadratic term)."""
+    basis = regional_basis(1, correctives=(pair,))  # seed 1: channels 3 and 4 overlap
+    assert np.abs(basis.correctives[0].delta).max() > 0
+    compact = CompactBasis.build(basis)
+    linear = CompactBasis.build(Basis(basis.channels, basis.neutral, basis.deltas))
+    i, j = pair
+    frames = []
+    for ai, aj in ((0.0, 0.0), (0.6, 0.0), (0.0, -0.4), (0.6, -0.4)):
+        a = np.zeros(N_CHANNELS)
+        a[5] = 0.3  # another channel, always on
+        a[i], a[j] = ai, aj
+        frames.append(a)
+    frames.append(np.full(N_CHANNELS, 0.5))  # every channel and the corrective
+    for a in frames:
+        extra = compact.plan(a, method="ranges").bytes_read - linear.plan(a, method="ranges").bytes_read
+        assert (extra > 0) == (a[i] != 0 and a[j] != 0)
+        reference = evaluate_basis(basis, a)
+        for method in ("auto", *METHODS):
+            got = compact.evaluate(a, method=method)
+            assert got.shape == reference.shape and got.dtype == np.float32
+            assert np.abs(got - reference).max() <= compact.error_bound(a)
+
+
 def test_compact_plan_skips_channels_at_zero():
     compact = COMPACT[np.float32, False]
     neutral_bytes = compact.n_vertices * 3 * 4

@@ -439,7 +439,12 @@ class CompactBasis:
         self.dtype = dtype
         self._n_channels = basis.n_channels
         self._pairs = basis.corrective_pairs  # (k, 2)
-        self._pair_list = [tuple(p) for p in self._pairs.tolist()]
+        c = basis.n_channels
+        correctives_of: list[list[tuple[int, int]]] = [[] for _ in range(c)]
+        for k, (i, j) in enumerate(self._pairs.tolist()):
+            correctives_of[i].append((c + k, j))  # term c + k is a_i · a_j
+        self._correctives_of = tuple(tuple(terms) for terms in correctives_of)  # (c,) by first channel
+        self._no_products = [0.0] * len(self._pairs)
         self._neutral = np.ascontiguousarray(basis.neutral, dtype=np.float32)  # (n, 3)
         self._neutral.setflags(write=False)
         self._neutral_flat = self._neutral.reshape(-1)  # (3n,)
@@ -548,11 +553,12 @@ class CompactBasis:
     # ---- one frame
 
     def _frame(self, activations: np.ndarray) -> tuple[list[float], list[int]]:
-        """Term activations of one frame as Python floats (the channels, then corrective products),
-        and the indices of the non-zero ones.
+        """Term activations of one frame as Python floats, (T,): the channels, then the corrective
+        products; and the indices of the non-zero ones, ascending.
 
         The common case (a finite (c,) vector) is checked in about a microsecond; anything else
-        goes through ``check_activations`` for a precise message.
+        goes through ``check_activations`` for a precise message. Only the correctives of non-zero
+        channels are multiplied out (a zero frame costs no corrective work).
         """
         try:
             a = np.asarray(activations, dtype=np.float64)
@@ -563,12 +569,17 @@ class CompactBasis:
             a = check_activations(self.channels, activations, ndim=1)  # raises, or the sum overflowed
             t = a.tolist()
         active = a.nonzero()[0].tolist()
-        c = self._n_channels
-        for k, (i, j) in enumerate(self._pair_list):
-            product = t[i] * t[j]
-            t.append(product)
-            if product:
-                active.append(c + k)
+        t += self._no_products
+        products = []
+        for i in active:
+            for k, j in self._correctives_of[i]:
+                product = t[i] * t[j]
+                if product:  # zero when channel j is, or on underflow
+                    t[k] = product
+                    products.append(k)
+        if products:
+            products.sort()
+            active += products
         return t, active
 
     def _method(self, active: list[int], method: Method) -> Literal["ranges", "blocks"]:
@@ -716,7 +727,7 @@ class CompactBasis:
 
     def _terms(self, a: np.ndarray) -> np.ndarray:
         """Term activations (f, T) float64 of checked activations (f, c)."""
-        if not self._pair_list:
+        if len(self._pairs) == 0:
             return a
         return np.concatenate([a, a[:, self._pairs[:, 0]] * a[:, self._pairs[:, 1]]], axis=1)
 
