@@ -376,3 +376,22 @@ def test_ict_rigs_from_automatic_landmarks(ict, ict_rigged: RigResult, mediapipe
     a = result.rig.skin_weights.toarray()[:9409]
     b = ict_rigged.rig.skin_weights.toarray()[:9409]
     assert 100 * np.abs(a - b).mean(axis=0).mean() < 2.63
+
+
+def test_ict_teeth_follow_head_or_jaw(ict, ict_rigged: RigResult) -> None:
+    """ICT's 32 teeth are separate meshes: the upper ones stay with the head, the lower follow the jaw."""
+    from mimetic.mesh.geometry import connected_components
+
+    mesh, _, meta = ict
+    first, last = next(p["vertex_range"] for p in meta["parts"] if p["name"] == "Teeth")
+    _, label = connected_components(mesh.faces, mesh.n_vertices)
+    teeth = [np.nonzero(label == c)[0] for c in np.unique(label[first : last + 1])]
+    assert len(teeth) == 32
+    split = np.median([mesh.vertices[ids, 1].mean() for ids in teeth])
+    rig = ict_rigged.rig
+    jaw = rig.skin_weights[:, rig.bone_index("jaw")].toarray().ravel()
+    right = [
+        (jaw[ids] > 0.99).all() if mesh.vertices[ids, 1].mean() < split else (jaw[ids] < 0.01).all()
+        for ids in teeth
+    ]
+    assert sum(right) >= 30, f"{32 - sum(right)} teeth blend head and jaw"

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
-from mimetic.mesh.closest import closest_points
+from mimetic.mesh.closest import ClosestPoints, closest_points
 from mimetic.mesh.geometry import connected_components, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint
 from mimetic.rig.model import Bone, Rig, Wire
@@ -30,6 +30,7 @@ from mimetic.rig.model import Bone, Rig, Wire
 MAX_INFLUENCES = 4
 MEMBERSHIP = 0.5  # interpolated indicator from which a vertex belongs to a region or wire set
 RIGID_SHARE = 0.6  # share of a separate part's vertices landing on one rigid reference part
+MAX_TOOTH_SPAN = 2.0  # a mouth part taller than this × the distance between the tooth rows is soft
 RIGID_PARTS = {
     "eye_L": "eye_L",
     "eye_R": "eye_R",
@@ -38,6 +39,7 @@ RIGID_PARTS = {
     "tongue": "jaw",
 }
 DEFORMABLE_PARTS = ("skin", "mouth", "ear_L", "ear_R")
+MOUTH_PARTS = ("teeth_upper", "teeth_lower", "tongue", "mouth")
 
 
 def rig_frame(to_model: Similarity) -> Similarity:
@@ -74,6 +76,92 @@ def _sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
     return centre, float(np.sqrt(max(sol[3] + centre @ centre, 0.0)))
 
 
+def _correspond(mesh_ref: Mesh, faces: np.ndarray, points: np.ndarray, normals: np.ndarray) -> ClosestPoints:
+    """Closest points (as indices into ``mesh_ref.faces``) on the reference triangles ``faces`` that
+    face the same way as each point's normal, or on any of them where none does."""
+    hit = closest_points(mesh_ref.vertices, mesh_ref.faces[faces], points, query_normals=normals, min_cos=0.0)
+    lost = hit.faces < 0
+    if lost.any():  # no triangle facing the same way nearby (e.g. a stray inner surface): take any
+        rescue = closest_points(mesh_ref.vertices, mesh_ref.faces[faces], points[lost])
+        hit.faces[lost], hit.bary[lost] = rescue.faces, rescue.bary
+    hit.faces[:] = faces[hit.faces]
+    return hit
+
+
+def _two_means(centres: np.ndarray, mesh_ref: Mesh) -> tuple[float, float]:
+    """The upper and lower rows' mean heights: 1-D 2-means of the mouth parts' centroid heights
+    (started at their widest gap), or the reference's teeth when there are fewer than 2 parts."""
+    values = np.sort(centres)
+    if len(values) < 2:
+        rows = [
+            mesh_ref.vertices[mesh_ref.part_vertices(p), 1].mean() for p in ("teeth_upper", "teeth_lower")
+        ]
+        return float(rows[0]), float(rows[1])
+    k = int(np.argmax(np.diff(values)))
+    split = 0.5 * (values[k] + values[k + 1])
+    for _ in range(10):
+        split = 0.5 * (values[values > split].mean() + values[values <= split].mean())
+    return float(values[values > split].mean()), float(values[values <= split].mean())
+
+
+def _separate_parts(
+    reference: Rig, user: Mesh, in_model: np.ndarray, hit: ClosestPoints
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The user's separate parts: the vertices (sorted) of those that move rigidly, by reference part
+    name, and (n_user,) bool marking the soft ones inside the mouth.
+
+    A connected component of the user's mesh is an eyeball when ``RIGID_SHARE`` of its vertices land
+    on a reference eyeball. It is in the mouth when that share lies in the box around the reference's
+    teeth, tongue and cavity (grown by 10 %). The mouth parts' centroid heights fall into two rows
+    (the user's upper and lower teeth; 1-D 2-means): a part no taller than ``MAX_TOOTH_SPAN`` times
+    the distance between the rows follows the head when its centroid is in the upper row's half and
+    the jaw otherwise; a taller one (gums joined to the tongue, a mouth cavity) keeps interpolated,
+    blended weights.
+    """
+    mesh_ref = reference.mesh
+    ref_part = np.full(mesh_ref.n_faces, "", dtype=object)
+    for name, faces in mesh_ref.parts.items():
+        ref_part[faces] = name
+    vertex_part = ref_part[hit.faces].astype(str)
+    y = in_model[:, 1]  # the user's vertices in the reference frame
+    inside = mesh_ref.vertices[
+        np.concatenate([mesh_ref.part_vertices(p) for p in MOUTH_PARTS if p in mesh_ref.parts])
+    ]
+    margin = 0.1 * np.ptp(inside, axis=0)
+    box = (inside.min(axis=0) - margin, inside.max(axis=0) + margin)
+    _, label = connected_components(user.faces, user.n_vertices)
+    order = np.argsort(label, kind="stable")
+    starts = np.flatnonzero(np.diff(label[order], prepend=-1))
+    rigid: dict[str, list[np.ndarray]] = {}
+    mouth: list[tuple[np.ndarray, dict[str, float]]] = []
+    soft = np.zeros(user.n_vertices, dtype=bool)
+    for ids in np.split(order, starts[1:]):
+        if len(ids) > user.n_vertices // 2:  # the skin
+            continue
+        names, counts = np.unique(vertex_part[ids], return_counts=True)
+        share = dict(zip(names.tolist(), (counts / len(ids)).tolist(), strict=True))
+        eye = max(("eye_L", "eye_R"), key=lambda p: share.get(p, 0.0))
+        if share.get(eye, 0.0) >= RIGID_SHARE:
+            rigid.setdefault(eye, []).append(ids)
+        elif np.mean(np.all((in_model[ids] >= box[0]) & (in_model[ids] <= box[1]), axis=1)) >= RIGID_SHARE:
+            mouth.append((ids, share))
+    if mouth:
+        centres = np.array([y[ids].mean() for ids, _ in mouth])
+        upper_mean, lower_mean = _two_means(centres, mesh_ref)
+        occlusal = 0.5 * (upper_mean + lower_mean)
+        for (ids, share), centre in zip(mouth, centres, strict=True):
+            if np.ptp(y[ids]) > MAX_TOOTH_SPAN * (upper_mean - lower_mean):
+                soft[ids] = True  # spans both rows: gums, tongue or cavity
+                continue
+            if centre > occlusal:
+                rigid.setdefault("teeth_upper", []).append(ids)
+            else:
+                rigid.setdefault("tongue" if share.get("tongue", 0.0) > 0.5 else "teeth_lower", []).append(
+                    ids
+                )
+    return {part: np.sort(np.concatenate(ids)) for part, ids in rigid.items()}, soft
+
+
 def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: dict | None = None) -> Rig:
     """The rig of ``reference`` (built on the fitted reference, reference frame) on ``user``'s vertices.
 
@@ -94,26 +182,19 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     mesh_ref = reference.mesh
     in_model = to_model.apply(user.vertices)
     normals = vertex_normals(in_model, user.faces)
-    hit = closest_points(mesh_ref.vertices, mesh_ref.faces, in_model, query_normals=normals, min_cos=0.0)
-    lost = hit.faces < 0
-    if lost.any():  # no triangle facing the same way nearby (e.g. a stray inner surface): take any
-        rescue = closest_points(mesh_ref.vertices, mesh_ref.faces, in_model[lost])
-        hit.faces[lost], hit.bary[lost] = rescue.faces, rescue.bary
+    hit = _correspond(mesh_ref, np.arange(mesh_ref.n_faces), in_model, normals)
+    rigid, soft_mouth = _separate_parts(reference, user, in_model, hit)
+    # the skin takes its data from the reference's deformable surface only (a lid margin near the
+    # reference eyeball must blink with the lid, not turn with the gaze)
+    in_rigid = np.zeros(user.n_vertices, dtype=bool)
+    for ids in rigid.values():
+        in_rigid[ids] = True
+    deformable = np.concatenate([mesh_ref.parts[p] for p in DEFORMABLE_PARTS if p in mesh_ref.parts])
+    again = ~in_rigid & ~soft_mouth & ~np.isin(hit.faces, deformable)
+    if again.any():
+        redo = _correspond(mesh_ref, deformable, in_model[again], normals[again])
+        hit.faces[again], hit.bary[again] = redo.faces, redo.bary
     corners = mesh_ref.faces[hit.faces]  # (n_user, 3)
-
-    # which reference part each user vertex landed on, and separate user parts that are rigid
-    ref_part = np.full(mesh_ref.n_faces, "", dtype=object)
-    for name, faces in mesh_ref.parts.items():
-        ref_part[faces] = name
-    vertex_part = ref_part[hit.faces]
-    n_comp, label = connected_components(user.faces, user.n_vertices)
-    rigid: dict[str, np.ndarray] = {}
-    for c in range(n_comp):
-        ids = np.nonzero(label == c)[0]
-        names, counts = np.unique(vertex_part[ids].astype(str), return_counts=True)
-        top = names[np.argmax(counts)]
-        if top in RIGID_PARTS and counts.max() >= RIGID_SHARE * len(ids):
-            rigid[top] = np.union1d(rigid.get(top, np.zeros(0, np.int64)), ids)
 
     # skin weights
     weights = _top_influences(
@@ -132,7 +213,8 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
         value = (hit.bary * indicator[corners]).sum(axis=1)
         return np.nonzero(value >= MEMBERSHIP)[0].astype(np.int64)
 
-    regions = {name: members(ids) for name, ids in reference.regions.items()}
+    rigid_ids = np.nonzero(in_rigid)[0]
+    regions = {name: np.setdiff1d(members(ids), rigid_ids) for name, ids in reference.regions.items()}
     if "upper_lip" in regions and "lower_lip" in regions:
         both = np.intersect1d(regions["upper_lip"], regions["lower_lip"])
         if len(both):
@@ -148,12 +230,8 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
 
     # parts of the user mesh: deformable surface, and the rigid parts found above
     face_first = user.faces[:, 0]
-    rigid_vertex = np.zeros(user.n_vertices, dtype=bool)
-    parts: dict[str, np.ndarray] = {}
-    for part, ids in rigid.items():
-        rigid_vertex[ids] = True
-        parts[part] = np.nonzero(np.isin(face_first, ids))[0]
-    parts["skin"] = np.nonzero(~rigid_vertex[face_first])[0]
+    parts = {part: np.nonzero(np.isin(face_first, ids))[0] for part, ids in rigid.items()}
+    parts["skin"] = np.nonzero(~in_rigid[face_first])[0]
     user_rig_mesh = Mesh(
         rig_vertices, user.faces, parts=dict(sorted(parts.items())), colors=user.colors, units=user.units
     )
@@ -188,7 +266,7 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
                 side=w.side,
                 points=tuple(surface_points(ref_positions(list(w.points)))),
                 dropoff_rel=w.dropoff_rel,
-                vertices=np.setdiff1d(members(w.vertices), np.nonzero(rigid_vertex)[0]),
+                vertices=np.setdiff1d(members(w.vertices), rigid_ids),
                 muscle_weights=dict(w.muscle_weights),
                 rest_weight=w.rest_weight,
             )
