@@ -1,0 +1,157 @@
+"""MP4 video of a clip: each frame posed, rendered offscreen and piped to ffmpeg (H.264, AAC).
+
+The ffmpeg binary comes with the ``imageio-ffmpeg`` wheel (libx264 and AAC built in), so nothing
+is needed from the system. Frames are posed by the baked basis when one is given (fast), else by
+an engine, and rendered by the shared offscreen renderer. The file is written next to its
+destination under a temporary name and renamed into place when ffmpeg succeeds, so a failure
+never leaves half a video over a good one.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import tempfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+import numpy as np
+
+from mimetic.engines import make_engine
+from mimetic.engines.basis import Basis, evaluate_basis
+from mimetic.errors import MimeticError, MissingExtraError
+from mimetic.rig.activations import Clip
+from mimetic.rig.model import Rig
+from mimetic.view.render import Renderer, default_renderer
+from mimetic.view.sheets import face_camera
+
+MIN_SIZE, MAX_SIZE = 64, 2160
+CRF = 18  # x264 constant quality: visually lossless for smooth-shaded renders
+MACRO_BLOCK = 16  # H.264 sizes are rounded up to multiples of this
+
+
+class VideoError(MimeticError, ValueError):
+    """A video cannot be written as asked (size, fps, audio file, ffmpeg failure)."""
+
+
+def _ffmpeg():
+    try:
+        import imageio_ffmpeg
+    except ImportError as error:  # pragma: no cover - a core dependency
+        raise MissingExtraError(
+            f"writing MP4 needs imageio-ffmpeg ({error}); pip install imageio-ffmpeg"
+        ) from None
+    return imageio_ffmpeg
+
+
+def write_mp4(
+    frames: Iterable[np.ndarray],
+    path: str | os.PathLike[str],
+    *,
+    fps: float,
+    size: tuple[int, int],
+    audio: str | os.PathLike[str] | None = None,
+) -> Path:
+    """Encode RGB frames (h, w, 3) uint8 (``size`` = (w, h), multiples of 16) to an H.264 MP4.
+
+    With ``audio`` (a WAV or any file ffmpeg reads), its track is muxed in as AAC in a second pass
+    and the video stops at the shorter of the two.
+    """
+    path = Path(path)
+    if audio is not None and not Path(audio).is_file():
+        raise VideoError(f"--audio {audio}: no such file")
+    width, height = size
+    if width % MACRO_BLOCK or height % MACRO_BLOCK:
+        raise VideoError(f"video size {width}×{height} must be a multiple of {MACRO_BLOCK} pixels")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temporary(path)
+    writer = _ffmpeg().write_frames(
+        str(tmp),
+        (width, height),
+        fps=fps,
+        codec="libx264",
+        pix_fmt_out="yuv420p",
+        quality=None,
+        output_params=["-crf", str(CRF), "-preset", "veryfast", "-movflags", "+faststart"],
+        macro_block_size=MACRO_BLOCK,
+        ffmpeg_log_level="error",
+    )
+    try:
+        writer.send(None)
+        for k, frame in enumerate(frames):
+            frame = np.asarray(frame)
+            if frame.shape != (height, width, 3) or frame.dtype != np.uint8:
+                raise VideoError(
+                    f"frame {k} is {frame.dtype}{frame.shape}; expected uint8 ({height}, {width}, 3)"
+                )
+            writer.send(np.ascontiguousarray(frame))
+        writer.close()
+        if audio is not None:
+            tmp = _mux(tmp, Path(audio), path)
+    except Exception as error:
+        writer.close()
+        tmp.unlink(missing_ok=True)
+        if isinstance(error, MimeticError):
+            raise
+        raise VideoError(f"ffmpeg could not write {path}: {error}") from error
+    os.replace(tmp, path)
+    return path
+
+
+def _temporary(path: Path) -> Path:
+    handle, name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".mp4", dir=path.parent)
+    os.close(handle)
+    return Path(name)
+
+
+def _mux(video: Path, audio: Path, path: Path) -> Path:
+    """A copy of ``video`` with ``audio`` as an AAC track, cut to the shorter of the two."""
+    out = _temporary(path)
+    command = [
+        _ffmpeg().get_ffmpeg_exe(), "-loglevel", "error", "-y", "-i", str(video), "-i", str(audio),
+        "-map", "0:v:0", "-map", "1:a:0", "-c:v", "copy", "-c:a", "aac", "-shortest",
+        "-movflags", "+faststart", str(out),
+    ]  # fmt: skip
+    run = subprocess.run(command, capture_output=True)
+    video.unlink(missing_ok=True)
+    if run.returncode != 0:
+        out.unlink(missing_ok=True)
+        message = run.stderr.decode(errors="replace").strip().splitlines()
+        raise VideoError(f"cannot add the audio {audio}: {message[-1] if message else 'ffmpeg failed'}")
+    return out
+
+
+def render_clip(
+    rig: Rig,
+    clip: Clip,
+    path: str | os.PathLike[str],
+    *,
+    basis: Basis | None = None,
+    engine: str = "wire",
+    size: int = 512,
+    yaw_deg: float = 0.0,
+    audio: str | os.PathLike[str] | None = None,
+    renderer: Renderer | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Path:
+    """Render ``clip`` on ``rig`` to an MP4 of ``size``² pixels (64..2160) at the clip's fps.
+
+    Each frame's pose comes from ``basis`` when given (``evaluate_basis``), else from the engine
+    ``engine``; the camera frames the rest face (``face_camera``), turned by ``yaw_deg``.
+    """
+    if not MIN_SIZE <= size <= MAX_SIZE:
+        raise VideoError(f"video size {size} is outside {MIN_SIZE}..{MAX_SIZE} pixels")
+    size = -(-size // MACRO_BLOCK) * MACRO_BLOCK
+    values = clip.select(rig.channel_names, {c.name: c.default for c in rig.channels}).values  # (f, c)
+    renderer = renderer or default_renderer()
+    camera = face_camera(rig, yaw_deg=yaw_deg)
+    deform = None if basis is not None else make_engine(rig, engine).deform
+
+    def frames():
+        for k, pose in enumerate(values):
+            vertices = evaluate_basis(basis, pose) if basis is not None else deform(pose)
+            yield renderer.render(rig.mesh.with_vertices(vertices), camera, size=(size, size))
+            if progress is not None:
+                progress(k + 1, len(values))
+
+    return write_mp4(frames(), path, fps=clip.fps, size=(size, size), audio=audio)

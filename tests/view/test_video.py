@@ -1,0 +1,89 @@
+"""Tests for mimetic.view.video: MP4 files with the right frames, size and audio, written atomically."""
+
+from __future__ import annotations
+
+import subprocess
+import wave
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+
+from mimetic.animate.clip import from_expressions
+from mimetic.rig.activations import Clip
+from mimetic.testing import small_rig
+from mimetic.view.video import VideoError, render_clip, write_mp4
+
+
+def _streams(path) -> str:
+    """ffmpeg's description of a file's streams (there is no ffprobe in the wheel)."""
+    run = subprocess.run(
+        [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", str(path)], capture_output=True
+    )
+    return run.stderr.decode()
+
+
+def _tone(path, seconds: float, rate: int = 16_000) -> None:
+    t = np.arange(int(seconds * rate)) / rate
+    samples = (0.3 * np.sin(2 * np.pi * 220 * t) * 32767).astype("<i2")
+    with wave.open(str(path), "wb") as out:
+        out.setnchannels(1)
+        out.setsampwidth(2)
+        out.setframerate(rate)
+        out.writeframes(samples.tobytes())
+
+
+@pytest.fixture(scope="module")
+def clip() -> Clip:
+    rig = small_rig()
+    keys = from_expressions(rig, [(0.0, "rest"), (0.4, "joy"), (0.8, "surprise"), (1.2, "rest")])
+    return keys.sample(25, channels=rig)
+
+
+def test_render_clip_writes_h264_with_every_frame(clip: Clip, tmp_path) -> None:
+    out = render_clip(small_rig(), clip, tmp_path / "clip.mp4", size=128)
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert frames == clip.n_frames == 31
+    assert seconds == pytest.approx(clip.n_frames / clip.fps, abs=0.05)
+    info = _streams(out)
+    assert "h264" in info and "128x128" in info and "yuv420p" in info
+
+
+def test_frames_show_the_motion(clip: Clip, tmp_path) -> None:
+    """The rest frame and the joy frame differ around the mouth; two rest frames do not."""
+    out = render_clip(small_rig(), clip, tmp_path / "clip.mp4", size=128)
+    reader = imageio_ffmpeg.read_frames(str(out))
+    meta = next(reader)
+    w, h = meta["size"]
+    frames = [np.frombuffer(f, np.uint8).reshape(h, w, 3).astype(float) for f in reader]
+    rest, joy, end = frames[0], frames[10], frames[-1]
+    assert np.abs(joy - rest).mean() > 2 * np.abs(end - rest).mean() + 1.0  # end ≈ rest up to coding noise
+
+
+def test_sizes_are_rounded_to_macro_blocks_and_checked(clip: Clip, tmp_path) -> None:
+    out = render_clip(small_rig(), clip, tmp_path / "odd.mp4", size=100)
+    assert "112x112" in _streams(out)
+    with pytest.raises(VideoError, match="outside"):
+        render_clip(small_rig(), clip, tmp_path / "x.mp4", size=32)
+
+
+def test_audio_is_muxed_and_the_shorter_stream_wins(clip: Clip, tmp_path) -> None:
+    tone = tmp_path / "tone.wav"
+    _tone(tone, 0.6)
+    out = render_clip(small_rig(), clip, tmp_path / "talk.mp4", size=64, audio=tone)
+    info = _streams(out)
+    assert "Audio: aac" in info
+    _, seconds = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert seconds < 0.8  # the 1.24 s video stops with the 0.6 s audio
+
+
+def test_missing_audio_and_bad_frames_leave_a_good_file(tmp_path) -> None:
+    target = tmp_path / "keep.mp4"
+    target.write_bytes(b"an old good video")
+    with pytest.raises(VideoError, match="no such file"):
+        write_mp4([], target, fps=25, size=(64, 64), audio=tmp_path / "none.wav")
+    frames = [np.zeros((64, 64, 3), np.uint8), np.zeros((32, 32, 3), np.uint8)]  # the second is wrong
+    with pytest.raises(VideoError, match="frame 1"):
+        write_mp4(frames, target, fps=25, size=(64, 64))
+    assert target.read_bytes() == b"an old good video"
+    assert [p.name for p in tmp_path.iterdir()] == ["keep.mp4"]  # no temporary file left behind
