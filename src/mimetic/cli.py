@@ -403,6 +403,180 @@ def pose(
     stdout.print(f"wrote {out}", highlight=False)
 
 
+clip_app = typer.Typer(help="Make and edit keyframed clips (JSON).", no_args_is_help=True)
+app.add_typer(clip_app, name="clip")
+
+
+def _parse_pose_spec(item: str) -> tuple[float, dict[str, float] | None]:
+    """``TIME:EXPR[=W][+EXPR[=W]...]`` or ``TIME:rest`` → (time_s, {expression: weight} or None)."""
+    from mimetic.animate.clip import ClipError
+
+    time_text, sep, rest = item.partition(":")
+    try:
+        time_s = float(time_text.strip().removesuffix("s"))
+    except ValueError:
+        sep = ""
+    if not sep or not rest.strip():
+        raise ClipError(f"--pose {item!r}: expected TIME:EXPRESSION[=WEIGHT][+...], e.g. --pose 0.5:joy=0.8")
+    if rest.strip() == "rest":
+        return time_s, None
+    weights = {}
+    for part in rest.split("+"):
+        name, eq, value = part.partition("=")
+        try:
+            weights[name.strip()] = float(value) if eq else 1.0
+        except ValueError:
+            raise ClipError(
+                f"--pose {item!r}: weight {value!r} of {name.strip()!r} is not a number"
+            ) from None
+    return time_s, weights
+
+
+@clip_app.command("new")
+def clip_new(
+    rig: Path = typer.Argument(..., help="The .mrig rig whose channels the clip drives."),
+    pose: list[str] = typer.Option(
+        ..., "--pose", help="A key pose TIME:EXPRESSION[=WEIGHT][+...] or TIME:rest (repeatable)."
+    ),
+    out: Path = typer.Option(..., "-o", "--out", help="The clip JSON to write."),
+    interpolation: str = typer.Option("cubic", "--interpolation", help="step, linear, cubic or tcb."),
+) -> None:
+    """Make a clip through expression poses, e.g. --pose 0:rest --pose 0.5:joy --pose 1:rest."""
+    from mimetic.animate.clip import from_expressions, save_clip
+    from mimetic.rig.format import load_rig
+
+    with _user_errors():
+        sequence = [_parse_pose_spec(item) for item in pose]
+        clip = from_expressions(load_rig(rig), sequence, interpolation=interpolation)
+        save_clip(clip, out)
+    stdout.print(f"wrote {out} ({clip.duration_s:g} s, {len(clip.channels)} channels)", highlight=False)
+
+
+@clip_app.command("edit")
+def clip_edit(
+    clip_file: Path = typer.Argument(..., help="The clip JSON to edit."),
+    key: list[str] = typer.Option(
+        ..., "--key", help="A new key CHANNEL@TIME=VALUE the edited curve must pass through (repeatable)."
+    ),
+    out: Path = typer.Option(..., "-o", "--out", help="The edited clip JSON to write."),
+    knot_spacing: float = typer.Option(
+        0.25, "--knot-spacing", help="B-spline knot spacing in seconds: how far each edit reaches."
+    ),
+    layer: str = typer.Option("edit", "--layer", help="The edit layer to add the displacement to."),
+) -> None:
+    """Edit curves by a smooth B-spline displacement through new keys, kept in its own layer."""
+    from mimetic.animate.clip import load_clip, parse_key_spec, save_clip
+
+    with _user_errors():
+        clip = load_clip(clip_file)
+        by_channel: dict[str, dict[float, float]] = {}
+        for item in key:
+            channel, time_s, value = parse_key_spec(item)
+            by_channel.setdefault(channel, {})[time_s] = value
+        for channel, constraints in by_channel.items():
+            clip = clip.edit(channel, constraints, knot_spacing_s=knot_spacing, layer=layer)
+        save_clip(clip, out)
+    stdout.print(f"wrote {out} ({len(key)} keys in layer {layer!r})", highlight=False)
+
+
+ANIMATE_OUTPUTS = (".mp4", ".glb")
+
+
+@app.command()
+def animate(
+    rig: Path = typer.Argument(..., help="The .mrig rig to animate."),
+    clip: Path = typer.Option(..., "--clip", help="A clip JSON (from `mimetic clip new` or the API)."),
+    out: Path = typer.Option(..., "-o", "--out", help="anim.mp4 (a rendered video) or anim.glb."),
+    fps: float = typer.Option(30.0, "--fps", help="Frames per second of the output."),
+    size: int = typer.Option(512, "--size", help="Video size in pixels (square, 64..2160)."),
+    audio: Path | None = typer.Option(None, "--audio", help="A sound track for the video (WAV, …)."),
+    engine: str = typer.Option("wire", "--engine", help="Deformation engine for the video: wire or vector."),
+) -> None:
+    """Play a clip on a rig: render an MP4 (with optional audio) or export an animated GLB."""
+    from mimetic.animate.clip import load_clip
+    from mimetic.rig.format import load_rig
+
+    with _user_errors():
+        kind = out.suffix.lower()
+        if kind not in ANIMATE_OUTPUTS:
+            raise MimeticError(f"-o {out}: use one of {', '.join(ANIMATE_OUTPUTS)}")
+        if not 0 < fps <= 240:
+            raise MimeticError(f"--fps {fps} is outside (0, 240]")
+        loaded = load_rig(rig)
+        sampled = load_clip(clip).sample(fps, channels=loaded)
+        if kind == ".mp4":
+            from mimetic.engines import ENGINES
+            from mimetic.view.video import render_clip
+
+            if engine not in ENGINES:
+                raise MimeticError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
+            with _progress("video") as progress:
+                render_clip(loaded, sampled, out, engine=engine, size=size, audio=audio, progress=progress)
+        else:
+            from mimetic.export.gltf import export_glb
+
+            with _progress("bake") as progress:
+                targets = _muscle_targets(loaded, engine, progress)
+            export_glb(loaded, out, morph_targets=targets, clip=sampled)
+    stdout.print(f"wrote {out} ({sampled.n_frames} frames at {fps:g} fps)", highlight=False)
+
+
+def _muscle_targets(rig, engine: str, progress) -> dict:
+    """One morph target per muscle channel (the baked basis), for GLB export."""
+    from mimetic.engines import ENGINES, make_engine
+    from mimetic.engines.bake import bake
+    from mimetic.export.gltf import morph_targets_from_basis
+
+    if engine not in ENGINES:
+        raise MimeticError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
+    progress(0, 1)
+    basis = bake(make_engine(rig, engine)).basis
+    progress(1, 1)
+    return morph_targets_from_basis(basis, rig)
+
+
+@app.command("export")
+def export_command(
+    rig: Path = typer.Argument(..., help="The .mrig rig to export."),
+    out: Path = typer.Option(..., "-o", "--out", help="The .glb file to write."),
+    arkit: bool = typer.Option(
+        False, "--arkit", help="Morph targets are the 52 ARKit blendshapes (else one per muscle)."
+    ),
+    obj_dir: Path | None = typer.Option(
+        None, "--obj-dir", help="Also write each morph target as a posed OBJ into this folder."
+    ),
+    engine: str = typer.Option("wire", "--engine", help="Deformation engine: wire or vector."),
+) -> None:
+    """Export a rig as GLB with named morph targets and its skeleton (ARKit-52 with --arkit)."""
+    from mimetic.export.gltf import export_glb
+    from mimetic.rig.format import load_rig
+
+    with _user_errors():
+        if out.suffix.lower() != ".glb":
+            raise MimeticError(f"-o {out}: export writes .glb")
+        loaded = load_rig(rig)
+        with _progress("bake") as progress:
+            if arkit:
+                from mimetic.animate.arkit import arkit_shapes
+
+                progress(0, 1)
+                targets = arkit_shapes(loaded, engine=engine)
+                progress(1, 1)
+            else:
+                targets = _muscle_targets(loaded, engine, progress)
+        written = [export_glb(loaded, out, morph_targets=targets)]
+        if obj_dir is not None:
+            from mimetic.mesh.io import save_mesh
+
+            obj_dir.mkdir(parents=True, exist_ok=True)
+            rest = loaded.mesh.vertices
+            for name, delta in targets.items():
+                written.append(save_mesh(loaded.mesh.with_vertices(rest + delta), obj_dir / f"{name}.obj"))
+    stdout.print(f"wrote {out} ({len(targets)} morph targets)", highlight=False)
+    if obj_dir is not None:
+        stdout.print(f"wrote {len(written) - 1} OBJs to {obj_dir}", highlight=False)
+
+
 @app.command()
 def demo(
     out: Path = typer.Option(Path("mimetic-demo"), "-o", "--out", help="Folder for the demo outputs."),

@@ -9,6 +9,11 @@ expression sheets (``expressions.png`` with the wire engine, ``expressions_vecto
 library expression as a posed mesh and a face render (``expressions/NAME.obj``, ``NAME.png``,
 wire engine).
 
+It also animates the default head: an expression sequence as a keyframed clip
+(``animation.clip.json``), an animated GLB with one named morph target per muscle and the
+skeleton (``animation.glb``), the same clip rendered to ``animation.mp4``, and the ARKit-52
+blendshapes baked from the muscle rig as a GLB (``head_arkit.glb``).
+
 When the shared real data is present (``../shared/data`` beside the repository, or
 ``$MIMETIC_SHARED_DATA``), it also rigs the ICT-FaceKit neutral head automatically (MediaPipe
 landmarks, or ICT's own 68 landmark vertices without the ``[track]`` extra) into ``ict/``: the
@@ -99,11 +104,35 @@ def run_demo(
     if progress:
         progress(total - 1, total)
     files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer)
+    files += _animation(default_rig, engines["wire"], out, renderer)
     ict_files, notes = _ict(out / "ict", renderer)
     files += ict_files
     if progress:
         progress(total, total)
     return DemoResult(out, tuple(files), tuple(notes))
+
+
+ANIMATION = ((0.0, "rest"), (1.0, "joy"), (2.0, "surprise"), (3.0, "anger"), (4.0, "sadness"), (5.0, "rest"))
+ANIMATION_FPS = 30
+
+
+def _animation(rig: Rig, engine: Engine, out: Path, renderer: Renderer) -> list[Path]:
+    """An expression sequence as a clip, an animated GLB, an MP4; and the ARKit-52 GLB."""
+    from mimetic.animate.arkit import arkit_shapes
+    from mimetic.animate.clip import from_expressions, save_clip
+    from mimetic.engines.bake import bake
+    from mimetic.export.gltf import export_glb, morph_targets_from_basis
+    from mimetic.view.video import render_clip
+
+    keys = from_expressions(rig, list(ANIMATION))
+    clip = keys.sample(ANIMATION_FPS, channels=rig)
+    basis = bake(engine).basis
+    return [
+        save_clip(keys, out / "animation.clip.json"),
+        export_glb(rig, out / "animation.glb", morph_targets=morph_targets_from_basis(basis, rig), clip=clip),
+        render_clip(rig, clip, out / "animation.mp4", basis=basis, size=512, renderer=renderer),
+        export_glb(rig, out / "head_arkit.glb", morph_targets=arkit_shapes(engine)),
+    ]
 
 
 ICT_SHELLS = ("Lacrimal fluid", "Eye blend", "Eye occlusion")

@@ -1,0 +1,84 @@
+"""End-to-end tests of ``mimetic clip new|edit`` and ``mimetic animate``."""
+
+from __future__ import annotations
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from mimetic.animate.clip import load_clip
+from mimetic.cli import app
+from mimetic.rig.format import save_rig
+from mimetic.testing import small_rig
+
+runner = CliRunner()
+
+
+def run(*args):
+    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("animate")
+    rig_file = save_rig(small_rig(), folder / "small.mrig")
+    clip_file = folder / "clip.json"
+    result = run("clip", "new", rig_file, "--pose", "0:rest", "--pose", "0.5:joy", "--pose",
+                 "1:surprise=0.8+joy=0.2", "--pose", "1.5:rest", "-o", clip_file)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    return rig_file, clip_file, folder
+
+
+def test_clip_new_keys_the_expressions(files):
+    _, clip_file, _ = files
+    clip = load_clip(clip_file)
+    rig = small_rig()
+    assert clip.duration_s == 1.5
+    from mimetic.animate.expressions import expression_pose
+
+    values = clip.evaluate(np.array([0.0, 0.5]))
+    np.testing.assert_allclose(values[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(values[1], expression_pose(rig, "joy"), atol=1e-9)
+
+
+def test_clip_edit_passes_through_the_new_keys_in_its_own_layer(files):
+    _, clip_file, folder = files
+    out = folder / "edited.json"
+    result = run("clip", "edit", clip_file, "--key", "jaw_open@0.75=0.3", "--key", "jaw_open@1.0=0.1",
+                 "--knot-spacing", "0.1", "-o", out)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    before, after = load_clip(clip_file), load_clip(out)
+    j = after.channels.index("jaw_open")
+    np.testing.assert_allclose(after.evaluate(np.array([0.75, 1.0]))[:, j], [0.3, 0.1], atol=1e-9)
+    assert [layer.name for layer in after.layers] == [layer.name for layer in before.layers] + ["edit"]
+    far = np.array([0.0, 0.3, 1.45, 1.5])  # beyond the knot spans [0.4, 1.1] and [0.7, 1.4]
+    np.testing.assert_array_equal(after.evaluate(far), before.evaluate(far))
+
+
+def test_animate_renders_an_mp4(files):
+    rig_file, clip_file, folder = files
+    out = folder / "anim.mp4"
+    result = run("animate", rig_file, "--clip", clip_file, "--fps", "20", "--size", "96", "-o", out)
+    assert result.exit_code == 0, result.output
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert frames == 31 and seconds == pytest.approx(1.55, abs=0.05)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("clip", "edit", "CLIP", "--key", "jaw_open=0.3", "-o", "OUT"), "CHANNEL@TIME"),
+        (("clip", "edit", "CLIP", "--key", "no_such@0.5=1", "-o", "OUT"), "no_such"),
+        (("clip", "new", "RIG", "--pose", "later:joy", "-o", "OUT"), "TIME:EXPRESSION"),
+        (("clip", "new", "RIG", "--pose", "0:no_such_expression", "-o", "OUT"), "no_such_expression"),
+        (("animate", "RIG", "--clip", "CLIP", "-o", "OUT.avi"), ".mp4"),
+    ],
+)
+def test_bad_input_is_one_line_and_writes_nothing(files, args, message):
+    rig_file, clip_file, folder = files
+    out = folder / "never.json"
+    swap = {"CLIP": clip_file, "RIG": rig_file, "OUT": out, "OUT.avi": folder / "never.avi"}
+    result = run(*[swap.get(a, a) for a in args])
+    assert result.exit_code == 1 and message in result.output
+    assert not out.exists() and not (folder / "never.avi").exists()
