@@ -82,3 +82,36 @@ def test_bad_input_is_one_line_and_writes_nothing(files, args, message):
     result = run(*[swap.get(a, a) for a in args])
     assert result.exit_code == 1 and message in result.output
     assert not out.exists() and not (folder / "never.avi").exists()
+
+
+def test_animate_exports_an_animated_glb(files):
+    from mimetic.export.gltf import read_glb_summary
+
+    rig_file, clip_file, folder = files
+    out = folder / "anim.glb"
+    result = run("animate", rig_file, "--clip", clip_file, "--fps", "24", "-o", out)
+    assert result.exit_code == 0, result.output
+    summary = read_glb_summary(out)
+    rig = small_rig()
+    assert summary["vertices"] == rig.n_vertices
+    assert set(summary["target_names"]) == set(rig.muscle_names)
+    (animation,) = summary["animations"]
+    assert animation["frames"] == 37 and animation["duration_s"] == pytest.approx(1.5)
+    assert animation["weights_channels"] == 1 and animation["rotation_channels"] >= 1  # the jaw moves
+
+
+def test_export_arkit_writes_52_named_targets_and_objs(files):
+    from mimetic.animate.arkit import ARKIT_NAMES
+    from mimetic.export.gltf import read_glb_summary
+    from mimetic.mesh.io import load_mesh
+
+    rig_file, _, folder = files
+    out, objs = folder / "arkit.glb", folder / "arkit_objs"
+    result = run("export", rig_file, "--arkit", "--obj-dir", objs, "-o", out)
+    assert result.exit_code == 0, result.output
+    assert list(read_glb_summary(out)["target_names"]) == list(ARKIT_NAMES)
+    assert sorted(p.stem for p in objs.glob("*.obj")) == sorted(ARKIT_NAMES)
+    rig = small_rig()
+    jaw = load_mesh(objs / "jawOpen.obj").vertices - rig.mesh.vertices
+    chin = rig.landmarks["pogonion"]
+    assert jaw[rig.mesh.faces[chin.face][0], 1] < -0.5  # cm: jawOpen drops the chin
