@@ -479,20 +479,34 @@ def clip_edit(
     stdout.print(f"wrote {out} ({len(key)} keys in layer {layer!r})", highlight=False)
 
 
-ANIMATE_OUTPUTS = (".mp4", ".glb")
+ANIMATE_OUTPUTS = (".mp4", ".glb", ".usda", ".usdc", ".usd")
+SCENE_OUTPUTS = (".glb", ".usda", ".usdc", ".usd")
+
+
+def _write_scene(rig, out: Path, targets: dict, clip=None) -> Path:
+    """A GLB, or USD (UsdSkel; needs the [usd] extra), by the suffix of ``out``."""
+    if out.suffix.lower() == ".glb":
+        from mimetic.export.gltf import export_glb
+
+        return export_glb(rig, out, morph_targets=targets, clip=clip)
+    from mimetic.export.usd import export_usd
+
+    return export_usd(rig, out, morph_targets=targets, clip=clip)
 
 
 @app.command()
 def animate(
     rig: Path = typer.Argument(..., help="The .mrig rig to animate."),
     clip: Path = typer.Option(..., "--clip", help="A clip JSON (from `mimetic clip new` or the API)."),
-    out: Path = typer.Option(..., "-o", "--out", help="anim.mp4 (a rendered video) or anim.glb."),
+    out: Path = typer.Option(
+        ..., "-o", "--out", help="anim.mp4 (a rendered video), anim.glb or anim.usda/.usdc (UsdSkel)."
+    ),
     fps: float = typer.Option(30.0, "--fps", help="Frames per second of the output."),
     size: int = typer.Option(512, "--size", help="Video size in pixels (square, 64..2160)."),
     audio: Path | None = typer.Option(None, "--audio", help="A sound track for the video (WAV, …)."),
     engine: str = typer.Option("wire", "--engine", help="Deformation engine for the video: wire or vector."),
 ) -> None:
-    """Play a clip on a rig: render an MP4 (with optional audio) or export an animated GLB."""
+    """Play a clip on a rig: render an MP4 (with optional audio) or export an animated GLB or USD."""
     from mimetic.animate.clip import load_clip
     from mimetic.rig.format import load_rig
 
@@ -513,11 +527,9 @@ def animate(
             with _progress("video") as progress:
                 render_clip(loaded, sampled, out, engine=engine, size=size, audio=audio, progress=progress)
         else:
-            from mimetic.export.gltf import export_glb
-
             with _progress("bake") as progress:
                 targets = _muscle_targets(loaded, engine, progress)
-            export_glb(loaded, out, morph_targets=targets, clip=sampled)
+            _write_scene(loaded, out, targets, sampled)
     stdout.print(f"wrote {out} ({sampled.n_frames} frames at {fps:g} fps)", highlight=False)
 
 
@@ -538,7 +550,7 @@ def _muscle_targets(rig, engine: str, progress) -> dict:
 @app.command("export")
 def export_command(
     rig: Path = typer.Argument(..., help="The .mrig rig to export."),
-    out: Path = typer.Option(..., "-o", "--out", help="The .glb file to write."),
+    out: Path = typer.Option(..., "-o", "--out", help="The .glb (or .usda/.usdc, UsdSkel) file to write."),
     arkit: bool = typer.Option(
         False, "--arkit", help="Morph targets are the 52 ARKit blendshapes (else one per muscle)."
     ),
@@ -547,13 +559,12 @@ def export_command(
     ),
     engine: str = typer.Option("wire", "--engine", help="Deformation engine: wire or vector."),
 ) -> None:
-    """Export a rig as GLB with named morph targets and its skeleton (ARKit-52 with --arkit)."""
-    from mimetic.export.gltf import export_glb
+    """Export a rig as GLB or USD with named morph targets and its skeleton (ARKit-52 with --arkit)."""
     from mimetic.rig.format import load_rig
 
     with _user_errors():
-        if out.suffix.lower() != ".glb":
-            raise MimeticError(f"-o {out}: export writes .glb")
+        if out.suffix.lower() not in SCENE_OUTPUTS:
+            raise MimeticError(f"-o {out}: export writes {', '.join(SCENE_OUTPUTS)}")
         loaded = load_rig(rig)
         with _progress("bake") as progress:
             if arkit:
@@ -564,7 +575,7 @@ def export_command(
                 progress(1, 1)
             else:
                 targets = _muscle_targets(loaded, engine, progress)
-        written = [export_glb(loaded, out, morph_targets=targets)]
+        written = [_write_scene(loaded, out, targets)]
         if obj_dir is not None:
             from mimetic.mesh.io import save_mesh
 

@@ -1,4 +1,5 @@
-"""Files for other tools: an animatable glTF (.glb) and per-frame OBJ sequences with channel curves.
+"""Files for other tools: an animatable glTF (.glb), USD (UsdSkel, with the ``[usd]`` extra) and
+per-frame OBJ sequences.
 
 Nothing else in mimetic imports this package.
 """
@@ -13,15 +14,19 @@ from mimetic.export.gltf import (
     read_glb_summary,
 )
 from mimetic.export.obj_sequence import export_obj_sequence, frame_name
+from mimetic.export.usd import check_usd, export_usd, usd_names
 
 __all__ = [
     "ExportError",
     "bone_channels",
+    "check_usd",
     "export_glb",
     "export_obj_sequence",
+    "export_usd",
     "frame_name",
     "gltf_vertices",
     "morph_targets_from_basis",
     "read_accessor",
     "read_glb_summary",
+    "usd_names",
 ]
