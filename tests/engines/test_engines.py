@@ -130,9 +130,10 @@ def test_engine_muscle_actions_read_as_described(name, seed):
     # triangularis pulls the corner down; depressor labii pulls the lower lip down
     assert moved("mouth_corner_L", triangularis_L=1.0)[1] < -0.005 * s
     assert moved("lower_lip_bottom", depressor_labii_L=1.0, depressor_labii_R=1.0)[1] < -0.005 * s
-    # the jaw opens: chin down, upper lip stays
-    assert moved("pogonion", jaw_open=0.3)[1] < -0.05 * s
-    assert np.linalg.norm(moved("upper_lip_top", jaw_open=0.3)) < 0.002 * s
+    # the jaw opens: chin down, the upper lip is drawn down only a little (a tenth of the chin's motion)
+    chin = moved("pogonion", jaw_open=0.3)
+    assert chin[1] < -0.05 * s
+    assert np.linalg.norm(moved("upper_lip_top", jaw_open=0.3)) < 0.15 * np.linalg.norm(chin)
 
 
 @pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
@@ -202,9 +203,11 @@ def test_engine_jaw_moves_the_lower_face_only(name, seed):
     moved = np.linalg.norm(
         deform(engine, jaw_open=rig.channel("jaw_open").maximum) - rig.mesh.vertices, axis=1
     )
-    for region in ("scalp", "forehead", "upper_lip", "nose"):
-        assert moved[rig.regions[region]].max() < 1e-9, region  # the cranium, upper face and upper lip stay
+    for region in ("scalp", "forehead", "nose"):
+        assert moved[rig.regions[region]].max() < 1e-9, region  # the cranium and the upper face stay
     assert moved[rig.regions["chin"]].min() > 0.05 * rig.scale  # the whole chin rides the jaw
+    # the upper lip is only drawn down (most toward the corners, where the lips share the jaw weight)
+    assert moved[rig.regions["upper_lip"]].max() < 0.5 * moved[rig.regions["chin"]].max()
     lower_teeth = rig.mesh.part_vertices("teeth_lower")
     assert moved[lower_teeth].min() > 0.0
     assert moved[rig.mesh.part_vertices("teeth_upper")].max() == 0.0

@@ -24,6 +24,12 @@ from mimetic.mesh.geometry import closest_on_polyline
 from mimetic.mesh.model import SurfacePoint
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
 
+# lengths in cm are those of the reference frame (the default head, 23 cm from crown to menton)
+LID_RIGID_U, LID_FREE_U = 0.2, 0.45  # lid ring parameter u where a lid bone's weight starts / ends fading
+JAW_DEPTH_POWER = 1.5  # jaw weight fades toward the ear as (depth fraction, tragion to chin/corner)**this
+JAW_BORDER_TAPER = (0.0, 4.0)  # cm below the mandible's lower border over which the jaw weight fades to 0
+MODIOLUS_RADIUS = 0.8  # cm around a mouth corner where the lips share the jaw and its weights are smoothed
+CORNER_JAW = 0.45  # jaw weight of the mouth corners (the lower lip rides the jaw, the upper lip stays)
 EYELID_CLOSED_RAD = 0.75  # upper-lid rotation that closes the eye (larger than any head's lid opening)
 BONES = (
     "head",
@@ -114,7 +120,7 @@ _WIRES_L = {
             "orbicularis_oris_incisivis",
             "orbicularis_oris",
         ],
-        0.08,
+        0.11,
         ["lower_lip"],
     ),
     "mouth_lower_corner": (
@@ -130,7 +136,7 @@ _WIRES_L = {
             "orbicularis_oris",
             "mentalis",
         ],
-        0.08,
+        0.11,
         ["upper_lip"],
     ),
 }
@@ -357,10 +363,39 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
         normal = -normal
     height = (v - stomion) @ normal
     jaw = _smoothstep(0.3, -1.3, height)
-    jaw *= _smoothstep(-17.0, -12.5, v[:, 1])  # the neck stays with the head
-    jaw *= _smoothstep(jaw_pivot[2] - 2.0, jaw_pivot[2] + 1.0, v[:, 2])  # and so does all behind the ramus
-    jaw[head.regions["lower_lip"]] = 1.0
-    jaw[head.regions["upper_lip"]] = 0.0
+    # the skin below the mandible's lower border (the line menton - gonion, seen from the side) is
+    # only stretched by the chin: its weight fades with the depth below the border, so the throat stays
+    menton, gonion = head.landmark_positions(["menton", "gonion_L"])
+    border = np.array([0.0, gonion[2] - menton[2], menton[1] - gonion[1]])  # its normal, pointing up
+    border /= np.linalg.norm(border) * np.sign(border[1])
+    below = -((v - menton) @ border)
+    jaw *= 1.0 - _smoothstep(JAW_BORDER_TAPER[0], JAW_BORDER_TAPER[1], below)
+    # the skin over the ramus and the masseter is anchored at the ear and stretches over the moving
+    # mandible: the weight falls from the mouth corners toward the ear, as a power of the depth fraction
+    tragion = head.landmark_positions(["tragion_L"])[0]
+    corner, pogonion = head.landmark_positions(["mouth_corner_L", "pogonion"])
+    front = min(corner[2], pogonion[2])  # the chin and the canines, in front of it, are rigid on the bone
+    depth = np.clip((v[:, 2] - tragion[2]) / (front - tragion[2]), 0.0, 1.0)
+    jaw *= depth**JAW_DEPTH_POWER
+    # the lips: the lower lip rides the jaw and the upper lip stays, but the orbicularis ties them at
+    # the corners (the modiolus), where both lips take the corner's share, and around each corner the
+    # weights are smoothed over the surface, so the skin there stretches evenly instead of folding
+    corners = head.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
+    to_corner = np.linalg.norm(v[:, None] - corners[None], axis=2).min(axis=1)
+    near = 1.0 - _smoothstep(0.0, MODIOLUS_RADIUS, to_corner)  # 1 at a corner, 0 beyond the modiolus
+    lower, upper = head.regions["lower_lip"], head.regions["upper_lip"]
+    jaw[lower] = 1.0
+    jaw[upper] = 0.0
+    cavity = head.mesh.part_vertices("mouth")  # follows the lips it lines
+    for ids in (lower, upper, cavity):
+        jaw[ids] += near[ids] * (CORNER_JAW - jaw[ids])
+    faces = head.mesh.faces[np.concatenate([head.mesh.parts[p] for p in ("skin", "mouth")])]
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    A = sp.csr_matrix((np.ones(2 * len(edges)), (edges.ravel(), edges[:, ::-1].ravel())), shape=(n, n))
+    A = sp.diags(1.0 / np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1.0)) @ A  # neighbour mean
+    around = np.nonzero(to_corner < MODIOLUS_RADIUS)[0]
+    for _ in range(10):
+        jaw[around] = (A @ jaw)[around]
     parts = head.mesh.parts
     for part, value in (
         ("teeth_lower", 1.0),
@@ -373,8 +408,9 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     W[:, BONES.index("jaw")] = jaw
     # eyelids: each column of the lid has the weight that makes a rotation of EYELID_CLOSED_RAD bring
     # its margin to the opposite lid's (so a blink closes the whole fissure, the canthi stay put and
-    # the same channel value closes every head); the lid moves rigidly up to u = 0.2 and blends into
-    # the skin by u = 0.6, so its triangles never cut through the cornea
+    # the same channel value closes every head); the lid moves rigidly up to u = LID_RIGID_U (the
+    # tarsal plate) and blends into the skin by u = LID_FREE_U, short of the brow, so the orbital skin
+    # above the crease stays when the lid closes and its triangles never cut through the cornea
     for side in "LR":
         rings = topo.eye_L if side == "L" else topo.eye_R
         centre = head.eye_centres[0 if side == "L" else 1]
@@ -387,7 +423,7 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
         up, down = np.sin(t) > 1e-9, np.sin(t) < -1e-9
         for k, u in enumerate(rings.u):
             ids = rings.index[k]
-            w = (1.0 - _smoothstep(0.2, 0.6, np.array(max(u, 0.0)))) * share
+            w = (1.0 - _smoothstep(LID_RIGID_U, LID_FREE_U, np.array(max(u, 0.0)))) * share
             W[ids[up], BONES.index(f"eyelid_upper_{side}")] = w[up]
             W[ids[down], BONES.index(f"eyelid_lower_{side}")] = w[down]
         eye = np.unique(head.mesh.faces[parts[f"eye_{side}"]])
@@ -420,7 +456,7 @@ def _channels(muscles: list[Muscle]) -> list[Channel]:
     channels += [
         Channel("gaze_yaw", -0.6, 0.6, unit="rad", group="eyes"),
         Channel("gaze_pitch", -0.5, 0.5, unit="rad", group="eyes"),
-        Channel("gaze_convergence", 0.0, 0.4, unit="rad", group="eyes"),
+        Channel("gaze_convergence", -0.2, 0.4, unit="rad", group="eyes"),
         Channel("head_yaw", -0.9, 0.9, unit="rad", group="head"),
         Channel("head_pitch", -0.6, 0.6, unit="rad", group="head"),
         Channel("head_roll", -0.5, 0.5, unit="rad", group="head"),
