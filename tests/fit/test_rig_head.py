@@ -317,10 +317,14 @@ def test_ict_identities_rig(ict, seed: int) -> None:
     assert report.accepted and report.mean_pct < 0.05
 
 
-def test_mediapipe_canonical_face_mask_rigs() -> None:
-    """MediaPipe's 468-vertex canonical face: a sparse, face-only mask in cm."""
+@pytest.mark.parametrize(
+    "file", ["canonical.npz", "fixtures/portrait_expected_face_geometry.npz"], ids=["canonical", "portrait"]
+)
+def test_mediapipe_face_masks_rig(file: str) -> None:
+    """MediaPipe's 468-vertex canonical face, and the metric mesh its face landmarker fitted to a
+    real portrait: sparse, face-only masks in cm."""
     folder = require_shared_data("mediapipe")
-    data = np.load(folder / "canonical.npz")
+    data = np.load(folder / file)
     mesh = Mesh(data["vertices"].astype(np.float64), data["faces"].astype(np.int64), units="cm")
     names = [n for n, i in MEDIAPIPE_LANDMARKS.items() if i < mesh.n_vertices]
     marks = Landmarks(
