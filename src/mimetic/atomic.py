@@ -1,6 +1,7 @@
 """Atomic file writes: a failure never leaves half a file over a good one.
 
-Every writer in mimetic (meshes, rigs, images) goes through :func:`atomic_write`. The data is
+Every writer in mimetic (meshes, rigs, images, videos, USD) goes through :func:`atomic_write`
+or, for tools that write to a file name themselves, :func:`atomic_path`. The data is
 written to a temporary file in the target's folder, flushed and fsynced, then moved over the
 target with ``os.replace`` (atomic on POSIX and Windows when both are on the same volume). If
 anything raises before that, the temporary file is deleted and the target is untouched.
@@ -39,10 +40,56 @@ _NEW_FILE_MODE = _default_mode()
 
 
 @contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str], *, keep_suffix: bool = False) -> Iterator[Path]:
+    """A temporary file path beside ``path``; on success it is moved over ``path``.
+
+    For writers that need a file name rather than an open file (ffmpeg, USD). With
+    ``keep_suffix`` the temporary name ends in the target's suffix (lower case), for tools that
+    pick the format by it. After the ``with`` block the file is fsynced and replaces ``path``
+    with its permission bits (new targets get ``0o666 & ~umask``); on any exception it is removed
+    and ``path`` is untouched.
+
+    Raises
+    ------
+    WriteError
+        The folder does not exist, ``path`` is a folder, or the folder is not writable.
+    """
+    target = Path(path)
+    folder = target.parent
+    if target.is_dir():
+        raise WriteError(f"cannot write {target}: it is a folder. Give a file name, e.g. {target / 'out'}.")
+    if not folder.is_dir():
+        raise WriteError(f"cannot write {target}: the folder {folder} does not exist. Create it first.")
+    suffix = ".tmp" + (target.suffix.lower() if keep_suffix else "")
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=folder)
+    except PermissionError as error:
+        raise WriteError(f"cannot write {target}: no permission to create files in {folder}.") from error
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as handle:
+            os.fsync(handle.fileno())
+        try:
+            file_mode = target.stat().st_mode & 0o7777
+        except FileNotFoundError:
+            file_mode = _NEW_FILE_MODE
+        os.chmod(tmp, file_mode)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+    _fsync_folder(folder)
+    log.debug("wrote %s", target)
+
+
+@contextlib.contextmanager
 def atomic_write(
     path: str | os.PathLike[str], mode: str = "wb", *, encoding: str = "utf-8"
 ) -> Iterator[IO[Any]]:
-    """Open a temporary file beside ``path``; on success move it over ``path``.
+    """Open a temporary file beside ``path``; on success move it over ``path`` (see ``atomic_path``).
 
     Parameters
     ----------
@@ -57,10 +104,6 @@ def atomic_write(
     ------
     file : the open temporary file. Write to it; do not close it.
 
-    The target keeps its permission bits when it is replaced; a new target gets the usual
-    ``0o666 & ~umask``. On any exception (including KeyboardInterrupt) inside the ``with`` block
-    the temporary file is removed and the exception propagates.
-
     Raises
     ------
     WriteError
@@ -68,35 +111,9 @@ def atomic_write(
     """
     if mode not in _MODES:
         raise ValueError(f"atomic_write mode must be one of {_MODES}; got {mode!r}")
-    target = Path(path)
-    folder = target.parent
-    if target.is_dir():
-        raise WriteError(f"cannot write {target}: it is a folder. Give a file name, e.g. {target / 'out'}.")
-    if not folder.is_dir():
-        raise WriteError(f"cannot write {target}: the folder {folder} does not exist. Create it first.")
-    try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    except PermissionError as error:
-        raise WriteError(f"cannot write {target}: no permission to create files in {folder}.") from error
-    tmp = Path(tmp_name)
-    try:
-        text = "b" not in mode
-        with os.fdopen(fd, mode, encoding=encoding if text else None) as handle:
-            yield handle
-            handle.flush()
-            os.fsync(handle.fileno())
-        try:
-            file_mode = target.stat().st_mode & 0o7777
-        except FileNotFoundError:
-            file_mode = _NEW_FILE_MODE
-        os.chmod(tmp, file_mode)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
-    _fsync_folder(folder)
-    log.debug("wrote %s", target)
+    text = "b" not in mode
+    with atomic_path(path) as tmp, open(tmp, mode, encoding=encoding if text else None) as handle:
+        yield handle
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:

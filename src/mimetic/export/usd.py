@@ -50,11 +50,9 @@ basis). ``check_usd`` runs ``usdchecker``'s validators on a file.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import re
-import tempfile
 import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -63,7 +61,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
-from mimetic.atomic import _NEW_FILE_MODE, WriteError, _fsync_folder
+from mimetic.atomic import WriteError, atomic_path
 from mimetic.engines.skinning import bone_transforms
 from mimetic.errors import MimeticWarning, MissingExtraError, RigError
 from mimetic.export.gltf import (
@@ -488,44 +486,15 @@ def _export_layer(layer, path: str) -> bool:
 
 
 def _export_layer_atomic(layer, path: Path) -> None:
-    """Export to a temporary file beside ``path`` (same suffix, so USD picks the format), then replace.
-
-    The same contract as ``mimetic.atomic.atomic_write``: the target keeps its permission bits, a
-    failure removes the temporary file and leaves the target as it was.
-    """
-    folder = path.parent
-    if path.is_dir():
-        raise WriteError(f"cannot write {path}: it is a folder. Give a file name, e.g. {path / 'out.usda'}.")
-    if not folder.is_dir():
-        raise WriteError(f"cannot write {path}: the folder {folder} does not exist. Create it first.")
-    try:
-        # the temporary name ends in the target's suffix, lower case: USD picks the format by it
-        suffix = f".tmp{path.suffix.lower()}"
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=folder)
-    except PermissionError as error:
-        raise WriteError(f"cannot write {path}: no permission to create files in {folder}.") from error
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
+    """Export to a temporary file beside ``path`` (same suffix, so USD picks the format), then
+    replace ``path`` (``mimetic.atomic.atomic_path``)."""
+    with atomic_path(path, keep_suffix=True) as tmp:
         try:
             ok = _export_layer(layer, str(tmp))
         except Exception as error:  # pxr raises Tf.ErrorException, a RuntimeError
             raise WriteError(f"cannot write {path}: USD failed to export the stage ({error})") from error
         if not ok:
             raise WriteError(f"cannot write {path}: USD failed to export the stage")
-        with open(tmp, "rb+") as handle:
-            os.fsync(handle.fileno())
-        try:
-            file_mode = path.stat().st_mode & 0o7777
-        except FileNotFoundError:
-            file_mode = _NEW_FILE_MODE
-        os.chmod(tmp, file_mode)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
-    _fsync_folder(folder)
 
 
 def _version() -> str:

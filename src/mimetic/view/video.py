@@ -2,9 +2,8 @@
 
 The ffmpeg binary comes with the ``imageio-ffmpeg`` wheel (libx264 and AAC built in), so nothing
 is needed from the system. Frames are posed by the baked basis when one is given (fast), else by
-an engine, and rendered by the shared offscreen renderer. The file is written next to its
-destination under a temporary name and renamed into place when ffmpeg succeeds, so a failure
-never leaves half a video over a good one.
+an engine, and rendered by the shared offscreen renderer. The file is written through
+``mimetic.atomic.atomic_path``, so a failure never leaves half a video over a good one.
 """
 
 from __future__ import annotations
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mimetic.atomic import atomic_path
 from mimetic.engines import make_engine
 from mimetic.engines.basis import Basis, evaluate_basis
 from mimetic.errors import MimeticError, MissingExtraError
@@ -64,9 +64,22 @@ def write_mp4(
     if width % MACRO_BLOCK or height % MACRO_BLOCK:
         raise VideoError(f"video size {width}×{height} must be a multiple of {MACRO_BLOCK} pixels")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temporary(path)
+    with atomic_path(path, keep_suffix=True) as tmp:
+        if audio is None:
+            _encode(frames, tmp, fps, (width, height))
+        else:
+            with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.stem}.") as scratch:
+                silent = Path(scratch) / "video.mp4"
+                _encode(frames, silent, fps, (width, height))
+                _mux(silent, Path(audio), tmp)
+    return path
+
+
+def _encode(frames: Iterable[np.ndarray], out: Path, fps: float, size: tuple[int, int]) -> None:
+    """Pipe the frames to ffmpeg's libx264 into ``out``."""
+    width, height = size
     writer = _ffmpeg().write_frames(
-        str(tmp),
+        str(out),
         (width, height),
         fps=fps,
         codec="libx264",
@@ -85,40 +98,25 @@ def write_mp4(
                     f"frame {k} is {frame.dtype}{frame.shape}; expected uint8 ({height}, {width}, 3)"
                 )
             writer.send(np.ascontiguousarray(frame))
-        writer.close()
-        if audio is not None:
-            tmp = _mux(tmp, Path(audio), path)
+    except MimeticError:
+        raise
     except Exception as error:
+        raise VideoError(f"ffmpeg could not write {out}: {error}") from error
+    finally:
         writer.close()
-        tmp.unlink(missing_ok=True)
-        if isinstance(error, MimeticError):
-            raise
-        raise VideoError(f"ffmpeg could not write {path}: {error}") from error
-    os.replace(tmp, path)
-    return path
 
 
-def _temporary(path: Path) -> Path:
-    handle, name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".mp4", dir=path.parent)
-    os.close(handle)
-    return Path(name)
-
-
-def _mux(video: Path, audio: Path, path: Path) -> Path:
-    """A copy of ``video`` with ``audio`` as an AAC track, cut to the shorter of the two."""
-    out = _temporary(path)
+def _mux(video: Path, audio: Path, out: Path) -> None:
+    """Write ``video`` with ``audio`` as an AAC track to ``out``, cut to the shorter of the two."""
     command = [
         _ffmpeg().get_ffmpeg_exe(), "-loglevel", "error", "-y", "-i", str(video), "-i", str(audio),
         "-map", "0:v:0", "-map", "1:a:0", "-c:v", "copy", "-c:a", "aac", "-shortest",
         "-movflags", "+faststart", str(out),
     ]  # fmt: skip
     run = subprocess.run(command, capture_output=True)
-    video.unlink(missing_ok=True)
     if run.returncode != 0:
-        out.unlink(missing_ok=True)
         message = run.stderr.decode(errors="replace").strip().splitlines()
         raise VideoError(f"cannot add the audio {audio}: {message[-1] if message else 'ffmpeg failed'}")
-    return out
 
 
 def render_clip(
