@@ -28,6 +28,7 @@ from mimetic.animate.arkit import (
 )
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
+from mimetic.mesh.model import surface_positions
 from mimetic.testing import require_shared_data, small_rig
 
 # Apple's ARFaceAnchor.BlendShapeLocation, in the order of its documentation
@@ -69,11 +70,8 @@ def rest(engine, rig):
 
 
 def _at(rig, vertices, names):
-    out = []
-    for name in names:
-        point = rig.landmarks[name]
-        out.append(np.asarray(point.bary) @ vertices[rig.mesh.faces[point.face]])
-    return np.array(out)
+    """Positions (k, 3) of the named landmarks on posed ``vertices``."""
+    return surface_positions([rig.landmarks[n] for n in names], vertices, rig.mesh.faces)
 
 
 # ---- the table and its names

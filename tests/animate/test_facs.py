@@ -20,6 +20,7 @@ from mimetic.animate.facs import (
 )
 from mimetic.engines import make_engine
 from mimetic.errors import MimeticError
+from mimetic.mesh.model import surface_positions
 from mimetic.testing import small_rig
 
 REQUIRED = (
@@ -66,11 +67,8 @@ def engine(rig):
 
 
 def _landmarks(rig, vertices, names):
-    out = []
-    for name in names:
-        point = rig.landmarks[name]
-        out.append(np.asarray(point.bary) @ vertices[rig.mesh.faces[point.face]])
-    return np.array(out)
+    """Positions (k, 3) of the named landmarks on posed ``vertices``."""
+    return surface_positions([rig.landmarks[n] for n in names], vertices, rig.mesh.faces)
 
 
 # ---- the table

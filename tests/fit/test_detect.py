@@ -23,8 +23,7 @@ import trimesh
 
 from mimetic.errors import LandmarkError
 from mimetic.fit.detect import MEDIAPIPE_POINTS, N_LANDMARKS, FaceDetection, detect_face
-from mimetic.head.model import Head, make_head
-from mimetic.head.params import HeadParams
+from mimetic.head.model import Head
 from mimetic.mesh.model import Mesh
 from mimetic.view import Renderer, frame_camera, project
 
@@ -75,19 +74,6 @@ class View:
             self.error_pct = dict(zip(NAMES, 100.0 * distance / self.iod_px, strict=True))
         else:
             self.error_pct = dict.fromkeys(NAMES, np.nan)
-
-
-@pytest.fixture(scope="module")
-def heads():
-    """``heads(seed) -> Head``, each built once per module (None: the default head)."""
-    cache: dict[int | None, Head] = {}
-
-    def get(seed: int | None) -> Head:
-        if seed not in cache:
-            cache[seed] = make_head() if seed is None else make_head(HeadParams.random(seed))
-        return cache[seed]
-
-    return get
 
 
 @pytest.fixture(scope="module")

@@ -44,8 +44,7 @@ from mimetic.fit.landmarks import (
     write_landmarks,
 )
 from mimetic.head.landmarks import IBUG68
-from mimetic.head.model import Head, make_head
-from mimetic.head.params import HeadParams
+from mimetic.head.model import Head
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import convert_units
@@ -535,19 +534,6 @@ def renderer():
     renderer = Renderer()  # EGL, else the CPU rasterizer (with one MimeticWarning)
     yield renderer
     renderer.release()
-
-
-@pytest.fixture(scope="module")
-def heads():
-    """``heads(seed) -> Head`` at the default resolution, built once per module (None: the default head)."""
-    cache: dict[int | None, Head] = {}
-
-    def get(seed: int | None) -> Head:
-        if seed not in cache:
-            cache[seed] = make_head() if seed is None else make_head(HeadParams.random(seed))
-        return cache[seed]
-
-    return get
 
 
 @pytest.fixture(scope="module")
