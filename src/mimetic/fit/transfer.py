@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
 from mimetic.mesh.closest import ClosestPoints, closest_points
 from mimetic.mesh.geometry import connected_components, vertex_normals
-from mimetic.mesh.model import Mesh, SurfacePoint
+from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.rig.model import Bone, Rig, Wire
 
 MAX_INFLUENCES = 4
@@ -56,15 +56,15 @@ def _interpolate(values: sp.spmatrix | np.ndarray, corners: np.ndarray, bary: np
     return pick @ values
 
 
-def _top_influences(weights: sp.csr_matrix, limit: int) -> sp.csr_matrix:
-    """Keep each row's ``limit`` largest weights and renormalise the rows to sum 1."""
-    dense = weights.toarray()
+def _top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
+    """Each row (n, bones) with its ``limit`` largest weights kept and renormalised to sum 1."""
+    dense = np.array(weights, dtype=np.float64)
     if dense.shape[1] > limit:
         cut = -np.partition(-dense, limit - 1, axis=1)[:, limit - 1 : limit]
         dense = np.where(dense >= cut, dense, 0.0)
     dense[dense < 1e-6] = 0.0
     dense /= dense.sum(axis=1, keepdims=True)
-    return sp.csr_matrix(dense)
+    return dense
 
 
 def _sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -198,13 +198,12 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
 
     # skin weights
     weights = _top_influences(
-        sp.csr_matrix(_interpolate(reference.skin_weights, corners, hit.bary)), MAX_INFLUENCES
+        _interpolate(reference.skin_weights, corners, hit.bary).toarray(), MAX_INFLUENCES
     )
-    weights = weights.tolil()
     for part, ids in rigid.items():
-        weights[ids, :] = 0.0
+        weights[ids] = 0.0
         weights[ids, reference.bone_index(RIGID_PARTS[part])] = 1.0
-    weights = weights.tocsr()
+    weights = sp.csr_matrix(weights)
 
     # regions and wire sets: membership by interpolated indicator
     def members(ref_ids: np.ndarray) -> np.ndarray:
@@ -240,31 +239,28 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     skin_faces = parts["skin"]
     skin_tri = user.faces[skin_faces]
 
-    def surface_points(points_model: np.ndarray) -> list[SurfacePoint]:
-        found = closest_points(in_model, skin_tri, points_model)
-        return [
-            SurfacePoint(int(skin_faces[f]), tuple(b.tolist()))
-            for f, b in zip(found.faces, found.bary, strict=True)
-        ]
-
-    def ref_positions(points: list[SurfacePoint]) -> np.ndarray:
-        return np.array([p.position(mesh_ref.vertices, mesh_ref.faces) for p in points])
-
-    landmark_names = list(reference.landmarks)
-    landmarks = dict(
-        zip(landmark_names, surface_points(ref_positions(list(reference.landmarks.values()))), strict=True)
-    )
-    ends = surface_points(ref_positions([p for m in reference.muscles for p in (m.origin, m.insertion)]))
-    muscles = [
-        replace(m, origin=ends[2 * i], insertion=ends[2 * i + 1]) for i, m in enumerate(reference.muscles)
+    # every surface point of the reference rig, moved at once: landmarks, muscle ends, wire points
+    reference_points = [
+        *reference.landmarks.values(),
+        *(p for m in reference.muscles for p in (m.origin, m.insertion)),
+        *(p for w in reference.wires for p in w.points),
     ]
+    found = closest_points(
+        in_model, skin_tri, surface_positions(reference_points, mesh_ref.vertices, mesh_ref.faces)
+    )
+    moved = iter(
+        SurfacePoint(int(skin_faces[f]), tuple(b.tolist()))
+        for f, b in zip(found.faces, found.bary, strict=True)
+    )
+    landmarks = {name: next(moved) for name in reference.landmarks}
+    muscles = [replace(m, origin=next(moved), insertion=next(moved)) for m in reference.muscles]
     wires = []
     for w in reference.wires:
         wires.append(
             Wire(
                 name=w.name,
                 side=w.side,
-                points=tuple(surface_points(ref_positions(list(w.points)))),
+                points=tuple(next(moved) for _ in w.points),
                 dropoff_rel=w.dropoff_rel,
                 vertices=np.setdiff1d(members(w.vertices), rigid_ids),
                 muscle_weights=dict(w.muscle_weights),
