@@ -17,8 +17,8 @@ The bandwidth limit of a single frame (the goal) is the bytes any float32 evalua
 ``nonzero_bytes``: the (n, 3) output (as many bytes as the neutral it starts from) plus the
 non-zero delta components of the active channels and correctives, divided by a read bandwidth
 measured in the same run (``np.sum`` over 256 MB). The "layout" rows divide instead the bytes
-``evaluate`` actually reads (``plan(a).bytes_read``: the float32 neutral plus the stored ranges or
-blocks it touches, zero padding included), i.e. how fast the layout streams its own data.
+``evaluate`` actually reads (``plan(a).bytes_read``: the float32 neutral plus the stored runs, ranges
+or blocks it touches, zero padding included), i.e. how fast the layout streams its own data.
 """
 
 from __future__ import annotations
@@ -259,7 +259,8 @@ def bench(basis: Basis, label: str, args: argparse.Namespace, bandwidth: float) 
             t = per_call(lambda a=a, cb=cb, out1=out1: cb.evaluate(a, out=out1), calls, rounds)
             times[dtype, case] = t
             plan = cb.plan(a)
-            what = f"{np.count_nonzero(a)} ch: {plan.axpy_calls} axpy + {plan.gemv_calls} gemv"
+            steps = f"{plan.runs} runs in 1 kernel call" if plan.runs else f"{plan.axpy_calls} axpy"
+            what = f"{np.count_nonzero(a)} ch: {steps} + {plan.gemv_calls} gemv"
             rows.append(
                 (
                     f"{label}: compact {name}, 1 frame, {case} ({what})",
@@ -320,7 +321,8 @@ def bench(basis: Basis, label: str, args: argparse.Namespace, bandwidth: float) 
     notes = [
         f"{label}: {n:,} vertices, {c} channels, {len(basis.correctives)} correctives, non-zero deltas in "
         f"{np.count_nonzero(np.abs(basis.deltas).sum(2)) / (n * c):.1%} of vertex-channels; float32 layouts: "
-        f"{cb32.n_ranges} ranges, {cb32.n_blocks} blocks, {cb32.stored_nbytes / 1e6:.1f} MB stored "
+        f"{cb32.n_runs} runs, {cb32.n_ranges} ranges, {cb32.n_blocks} blocks, "
+        f"{cb32.stored_nbytes / 1e6:.1f} MB stored "
         f"(dense float64 deltas {basis.deltas.nbytes / 1e6:.1f} MB)"
     ]
     for dtype, cb in compact.items():

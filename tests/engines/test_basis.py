@@ -29,6 +29,11 @@ DTYPES = (np.float32, np.float16)
 METHODS = ("ranges", "blocks")
 
 
+def methods_of(compact: CompactBasis) -> tuple[str, ...]:
+    """The evaluation methods of ``compact``: the compiled "runs" kernel needs float32 storage."""
+    return (*METHODS, "runs") if compact.dtype == np.float32 else METHODS
+
+
 def regional_basis(
     seed: int = 0, *, n: int = 300, channels: int = 8, correctives: tuple[tuple[int, int], ...] = ()
 ) -> Basis:
@@ -256,7 +261,7 @@ def test_compact_shapes_and_dtypes(dtype):
     n = compact.n_vertices
     assert compact.channels == BASIS_WITH_CORRECTIVES.channels
     assert compact.dtype == np.dtype(dtype)
-    for method in ("auto", *METHODS):
+    for method in ("auto", *methods_of(compact)):
         one = compact.evaluate(np.zeros(N_CHANNELS), method=method)
         assert one.shape == (n, 3) and one.dtype == np.float32 and one.flags.c_contiguous
     many = compact.evaluate_batch(np.zeros((5, N_CHANNELS)))
@@ -273,7 +278,7 @@ def test_compact_writes_into_out(dtype):
     compact = COMPACT[dtype, False]
     a = random_activations(np.random.default_rng(4), 3)
     out = np.full((compact.n_vertices, 3), np.nan, np.float32)
-    for method in METHODS:
+    for method in methods_of(compact):
         assert compact.evaluate(a[0], out=out, method=method) is out
         np.testing.assert_array_equal(out, compact.evaluate(a[0], method=method))
     batch = np.full((3, compact.n_vertices, 3), np.nan, np.float32)
@@ -300,7 +305,7 @@ def test_compact_zero_activations_give_the_neutral_within_compaction_error(dtype
     error = compact.compaction_error
     assert 0 <= error.neutral <= error.absolute
     rounded = neutral.astype(np.float32)  # exactly the float32 neutral, whatever the path
-    for method in ("auto", *METHODS):
+    for method in ("auto", *methods_of(compact)):
         got = compact.evaluate(np.zeros(N_CHANNELS), method=method)
         np.testing.assert_array_equal(got, rounded)
         assert np.abs(got - neutral).max() <= error.neutral
@@ -318,7 +323,7 @@ def test_compact_unit_activations_are_within_compaction_error(dtype, corrected):
     worst = [
         np.abs(compact.evaluate(u, method=m) - r).max()
         for u, r in zip(units, reference, strict=True)
-        for m in METHODS
+        for m in methods_of(compact)
     ]
     worst.append(np.abs(compact.evaluate_batch(units) - reference).max())
     assert max(worst) == error.absolute  # compaction_error is the worst of these
@@ -346,7 +351,7 @@ def test_compact_matches_reference_within_error_bound(dtype, corrected):
     batch_error = np.abs(compact.evaluate_batch(a) - reference).max(axis=(1, 2))
     assert np.all(batch_error <= bound)
     for frame, ref, limit in zip(a, reference, bound, strict=True):
-        for method in ("auto", *METHODS):
+        for method in ("auto", *methods_of(compact)):
             assert np.abs(compact.evaluate(frame, method=method) - ref).max() <= limit
     assert bound.max() < (1e-4 if dtype == np.float32 else 0.1)  # the bound itself is useful
 
@@ -364,7 +369,7 @@ def test_compact_paths_agree_with_reference_for_any_sparse_frame(a):
     for dtype in DTYPES:
         compact = COMPACT[dtype, True]
         bound = compact.error_bound(a)
-        for method in METHODS:
+        for method in methods_of(compact):
             assert np.abs(compact.evaluate(a, method=method) - reference).max() <= bound
         assert np.abs(compact.evaluate_batch(a[None])[0] - reference).max() <= bound
 
@@ -382,7 +387,7 @@ def test_compact_corrective_acts_only_when_both_channels_are_nonzero(dtype):
         with_it = compact.evaluate(a, method=method).astype(np.float64)
         return with_it - linear.evaluate(a, method=method), compact.error_bound(a) + linear.error_bound(a)
 
-    for method in METHODS:
+    for method in methods_of(compact):
         for alone in ((0.7, 0.0), (0.0, -0.4)):
             part, bound = corrective_part(*alone, method)
             assert np.abs(part).max() <= bound
@@ -410,7 +415,7 @@ def test_compact_corrective_is_read_exactly_when_both_channels_are_nonzero(pair)
         extra = compact.plan(a, method="ranges").bytes_read - linear.plan(a, method="ranges").bytes_read
         assert (extra > 0) == (a[i] != 0 and a[j] != 0)
         reference = evaluate_basis(basis, a)
-        for method in ("auto", *METHODS):
+        for method in ("auto", *methods_of(compact)):
             got = compact.evaluate(a, method=method)
             assert got.shape == reference.shape and got.dtype == np.float32
             assert np.abs(got - reference).max() <= compact.error_bound(a)
@@ -423,18 +428,22 @@ def test_compact_plan_skips_channels_at_zero():
     assert (zero.axpy_calls, zero.gemv_calls, zero.bytes_read) == (0, 0, neutral_bytes)  # the neutral only
     one = np.zeros(N_CHANNELS)
     one[5] = 0.3  # a regional channel
-    sparse = compact.plan(one)
+    sparse = compact.plan(one, method="ranges")
     assert sparse.gemv_calls == 0 and sparse.axpy_calls >= 1
     assert neutral_bytes < sparse.bytes_read < compact.plan(one, method="blocks").bytes_read
+    runs = compact.plan(one)  # auto: the kernel, over the non-zero components and short zero gaps
+    assert (runs.axpy_calls, runs.gemv_calls) == (0, 0) and runs.runs >= 1
+    assert neutral_bytes < runs.bytes_read <= sparse.bytes_read
     everything = compact.plan(np.ones(N_CHANNELS), method="blocks")
     assert everything.gemv_calls == compact.n_blocks and everything.axpy_calls == 0
     assert compact.nbytes == compact.plan(np.ones(N_CHANNELS)).bytes_read
     assert compact.plan(np.ones(N_CHANNELS), method="ranges").axpy_calls == compact.n_ranges
+    assert compact.plan(np.ones(N_CHANNELS)).runs == compact.n_runs
 
 
-def test_compact_auto_uses_gemv_where_most_terms_are_active():
+def test_compact_auto_uses_gemv_where_most_terms_are_active_in_float16():
     basis = regional_basis(9, n=3000, channels=40)
-    compact = CompactBasis.build(basis)
+    compact = CompactBasis.build(basis, dtype=np.float16)
     everything = np.ones(basis.n_channels)
     dense, sparse = compact.plan(everything), compact.plan(np.eye(basis.n_channels)[3])
     assert dense.gemv_calls >= 1
@@ -459,6 +468,7 @@ def test_compact_is_correct_with_tiny_ranges_blocks_and_chunks(monkeypatch, dtyp
     """Ranges split in pieces of 7 elements, blocks of at most 2 grains, batches of 4 frames."""
     monkeypatch.setattr(basis_module, "RANGE_MAX_ELEMENTS", 7)
     monkeypatch.setattr(basis_module, "RANGE_GAP_VERTICES", 0)
+    monkeypatch.setattr(basis_module, "RUN_GAP_ELEMENTS", 0)
     monkeypatch.setattr(basis_module, "BLOCK_MAX_VERTICES", 2 * basis_module.BLOCK_GRAIN_VERTICES)
     monkeypatch.setattr(basis_module, "BLOCK_CALL_ELEMENTS", 0)
     monkeypatch.setattr(basis_module, "BATCH_CHUNK_FRAMES", 4)
@@ -468,9 +478,58 @@ def test_compact_is_correct_with_tiny_ranges_blocks_and_chunks(monkeypatch, dtyp
     bound = compact.error_bound(a)
     assert np.all(np.abs(compact.evaluate_batch(a) - reference).max(axis=(1, 2)) <= bound)
     for frame, ref, limit in zip(a, reference, bound, strict=True):
-        for method in ("auto", *METHODS):
+        for method in ("auto", *methods_of(compact)):
             assert np.abs(compact.evaluate(frame, method=method) - ref).max() <= limit
     assert compact.n_blocks > 5
+
+
+def test_compact_runs_without_gaps_read_exactly_the_nonzero_components(monkeypatch):
+    monkeypatch.setattr(basis_module, "RUN_GAP_ELEMENTS", 0)
+    basis = BASIS_WITH_CORRECTIVES
+    compact = CompactBasis.build(basis)
+    stored = np.concatenate([basis.deltas, basis.corrective_deltas]).astype(np.float32)  # (T, n, 3)
+    nonzero = np.count_nonzero(stored.reshape(len(stored), -1), axis=1)  # (T,)
+    pairs = basis.corrective_pairs
+    rng = np.random.default_rng(11)
+    for a in [np.zeros(N_CHANNELS), np.ones(N_CHANNELS), *random_activations(rng, 10, active=0.3)]:
+        t = np.r_[a, a[pairs[:, 0]] * a[pairs[:, 1]]]  # (T,) term activations
+        plan = compact.plan(a, method="runs")
+        assert plan.bytes_read == 12 * compact.n_vertices + 4 * nonzero[t != 0].sum()
+        reference = evaluate_basis(basis, a)
+        assert np.abs(compact.evaluate(a, method="runs") - reference).max() <= compact.error_bound(a)
+
+
+def test_compact_runs_accepts_activations_in_any_layout():
+    """Read-only, strided, float32 or a list: each is the same frame (one compiled signature)."""
+    compact = COMPACT[np.float32, True]
+    a = random_activations(np.random.default_rng(12), active=0.6)
+    expected = compact.evaluate(a, method="runs")
+    strided = np.repeat(a, 2)[::2]
+    assert not strided.flags.c_contiguous
+    for frame in (frozen_copy(a), strided, a.tolist()):
+        np.testing.assert_array_equal(compact.evaluate(frame, method="runs"), expected)
+    single = a.astype(np.float32)
+    reference = evaluate_basis(BASIS_WITH_CORRECTIVES, single.astype(np.float64))
+    assert np.abs(compact.evaluate(single) - reference).max() <= compact.error_bound(single)
+
+
+def test_compact_runs_leaves_out_untouched_when_an_activation_is_not_finite():
+    compact = COMPACT[np.float32, True]
+    out = np.full((compact.n_vertices, 3), 7.0, np.float32)
+    a = np.zeros(N_CHANNELS)
+    a[4] = np.nan
+    with pytest.raises(ActivationError, match="channel 'channel_4' is not finite"):
+        compact.evaluate(a, out=out, method="runs")
+    assert np.all(out == 7.0)
+
+
+def test_compact_runs_needs_float32_storage():
+    compact = COMPACT[np.float16, True]
+    assert compact.n_runs == 0
+    with pytest.raises(ValueError, match="method 'runs' needs float32 storage"):
+        compact.evaluate(np.zeros(N_CHANNELS), method="runs")
+    with pytest.raises(ValueError, match="method 'runs' needs float32 storage"):
+        compact.plan(np.zeros(N_CHANNELS), method="runs")
 
 
 def test_compact_drop_below_leaves_dust_out_and_accounts_for_it():
@@ -496,7 +555,7 @@ def test_compact_drop_below_leaves_dust_out_and_accounts_for_it():
 def test_compact_handles_a_basis_of_one_vertex_and_one_channel():
     basis = Basis(("only",), [[1.0, 2.0, 3.0]], [[[0.5, 0.0, -0.5]]])
     compact = CompactBasis.build(basis)
-    for method in METHODS:
+    for method in methods_of(compact):
         np.testing.assert_array_equal(compact.evaluate([2.0], method=method), [[2.0, 2.0, 2.0]])
     np.testing.assert_array_equal(
         compact.evaluate_batch([[0.0], [2.0]]), [[[1.0, 2.0, 3.0]], [[2.0, 2.0, 2.0]]]
@@ -568,7 +627,7 @@ def test_compact_does_not_modify_its_inputs(dtype):
     compact = CompactBasis.build(basis, dtype=dtype)
     a = frozen_copy(random_activations(np.random.default_rng(8), 4))
     before = a.copy()
-    for method in ("auto", *METHODS):
+    for method in ("auto", *methods_of(compact)):
         compact.evaluate(a[0], method=method)
     compact.evaluate(list(a[1]))
     compact.evaluate_batch(a)
