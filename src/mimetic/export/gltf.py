@@ -195,7 +195,7 @@ def gltf_vertices(
     name (0 when absent), the joints follow the rig's bone channels. Compare with an engine
     (``make_engine(rig).deform``, scaled and rotated the same way) to see what the file loses.
     """
-    targets = _check_targets(morph_targets, rig.n_vertices)
+    targets = check_targets(morph_targets, rig.n_vertices)
     scale = UNIT_SCALE[rig.units] / UNIT_SCALE[check_units(units)]
     unknown = [k for k in pose if k not in rig.channel_names and k not in targets]
     if unknown:
@@ -305,10 +305,10 @@ class _Layout:
 
 
 def _layout(rig: Rig) -> _Layout:
-    from mimetic.mesh.io import _part_blocks  # the glTF writer's own rule for parts as primitives
+    from mimetic.mesh.io import part_blocks  # the glTF writer's own rule for parts as primitives
 
     try:
-        blocks = _part_blocks(rig.mesh, "rig mesh")
+        blocks = part_blocks(rig.mesh, "rig mesh")
     except MeshError:
         log.info("mesh parts are not consecutive blocks of faces and vertices: writing one primitive")
         blocks = [("mesh", slice(0, rig.n_vertices), slice(0, rig.mesh.n_faces))]
@@ -316,7 +316,7 @@ def _layout(rig: Rig) -> _Layout:
     return _Layout(tuple(names), tuple(vs), tuple(fs))
 
 
-def _check_targets(targets: Mapping[str, Any] | None, n: int) -> dict[str, np.ndarray]:
+def check_targets(targets: Mapping[str, Any] | None, n: int) -> dict[str, np.ndarray]:
     if targets is None:
         return {}
     if not isinstance(targets, Mapping):
@@ -363,7 +363,7 @@ def _source_rotation(rig: Rig) -> np.ndarray:
     return r
 
 
-def _quaternions(rotations: np.ndarray) -> np.ndarray:
+def quaternions(rotations: np.ndarray) -> np.ndarray:
     """Unit quaternions (f, 4) x y z w of rotations (f, 3, 3), each in the hemisphere of the one before."""
     q = Rotation.from_matrix(rotations).as_quat()  # (f, 4), scalar last as in glTF
     flip = np.ones(len(q))
@@ -397,7 +397,7 @@ def _joint_tracks(rig: Rig, values: np.ndarray, scale: float) -> dict[int, dict[
             raise RigError(f"bone {bone.name!r}: its pose is not a rotation plus a translation")
         track = {}
         if not np.allclose(rot, np.eye(3), rtol=0.0, atol=1e-12):
-            track["rotation"] = _quaternions(rot)
+            track["rotation"] = quaternions(rot)
         moved = np.abs(local[:, :3, 3] - rest_local[:3, 3]).max(initial=0.0)
         if moved > MOTION_TOL_REL * rig.scale:
             track["translation"] = local[:, :3, 3] * scale
@@ -406,7 +406,7 @@ def _joint_tracks(rig: Rig, values: np.ndarray, scale: float) -> dict[int, dict[
     return tracks
 
 
-def _clip_values(rig: Rig, clip: Clip, target_names: tuple[str, ...]) -> np.ndarray:
+def clip_values(rig: Rig, clip: Clip, target_names: tuple[str, ...]) -> np.ndarray:
     """The clip in rig channel order (f, c), defaults for missing channels; checks its channels."""
     known = set(rig.channel_names) | set(target_names)
     unknown = [c for c in clip.channels if c not in known]
@@ -494,7 +494,7 @@ def export_glb(
     path = Path(path)
     units = check_units(units)
     scale = UNIT_SCALE[rig.units] / UNIT_SCALE[units]
-    targets = _check_targets(morph_targets, rig.n_vertices)
+    targets = check_targets(morph_targets, rig.n_vertices)
     target_names = tuple(targets)
     if not isinstance(clip_name, str) or not clip_name:
         raise ExportError(f"clip_name must be a non-empty string; got {clip_name!r}")
@@ -648,7 +648,7 @@ def _add_animation(
     joint0: int,
     scale: float,
 ) -> None:
-    values = _clip_values(rig, clip, target_names)  # (f, c) rig order
+    values = clip_values(rig, clip, target_names)  # (f, c) rig order
     times = (np.arange(clip.n_frames) / clip.fps).astype(np.float32)
     animation = gl.Animation(name=clip_name)
     time_accessor = blob.accessor(times, "SCALAR", bounds=True)

@@ -44,11 +44,11 @@ class _ObjFrames:
     """OBJ text of the rig's mesh with new positions: the header and faces encoded once."""
 
     def __init__(self, mesh: Mesh) -> None:
-        from mimetic.mesh.io import _encode_obj  # the format save_mesh writes, byte for byte
+        from mimetic.mesh.io import encode_obj  # the format save_mesh writes, byte for byte
 
-        whole = _encode_obj(mesh, "obj sequence")
+        whole = encode_obj(mesh, "obj sequence")
         no_faces = Mesh(mesh.vertices, np.zeros((0, 3), np.int64), {}, mesh.colors, mesh.units)
-        head_and_vertices = _encode_obj(no_faces, "obj sequence")
+        head_and_vertices = encode_obj(no_faces, "obj sequence")
         assert whole.startswith(head_and_vertices)
         self.tail = whole[len(head_and_vertices) :]  # groups and faces
         lines = head_and_vertices.split(b"\n")

@@ -70,9 +70,9 @@ from mimetic.export.gltf import (
     ROTATION_TOL,
     SPARSE_MAX_SHARE,
     ExportError,
-    _check_targets,
-    _clip_values,
-    _quaternions,
+    check_targets,
+    clip_values,
+    quaternions,
 )
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.units import UNIT_SCALE, check_units
@@ -201,12 +201,12 @@ def export_usd(
         )
     units = check_units(units)
     scale = UNIT_SCALE[rig.units] / UNIT_SCALE[units]
-    targets = _check_targets(morph_targets, rig.n_vertices)
+    targets = check_targets(morph_targets, rig.n_vertices)
     if not isinstance(clip_name, str) or not clip_name:
         raise ExportError(f"clip_name must be a non-empty string; got {clip_name!r}")
     if clip is not None and not isinstance(clip, Clip):
         raise ExportError(f"clip must be a mimetic.rig.activations.Clip; got {type(clip).__name__}")
-    values = None if clip is None else _clip_values(rig, clip, tuple(targets))  # (f, c) rig order
+    values = None if clip is None else clip_values(rig, clip, tuple(targets))  # (f, c) rig order
     rotation = _source_rotation(rig) if restore_frame else np.eye(3)
     pxr = _import_pxr()
 
@@ -437,7 +437,7 @@ def _joint_motion(rig: Rig, values: np.ndarray, scale: float) -> tuple[list[int]
         shifted = np.abs(local[:, :3, 3] - rest_local[:3, 3]).max(initial=0.0) > MOTION_TOL_REL * rig.scale
         if turned or shifted:
             moving.append(k)
-        rotations[:, k] = _quaternions(rot)
+        rotations[:, k] = quaternions(rot)
         translations[:, k] = local[:, :3, 3] * scale
     return moving, rotations, translations
 

@@ -181,7 +181,7 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     ext = _extension(path, src)
     encoder = {
-        ".obj": _encode_obj,
+        ".obj": encode_obj,
         ".ply": _encode_ply,
         ".stl": _encode_stl,
         ".glb": _encode_glb,
@@ -484,7 +484,7 @@ def _obj_faces(
     return faces, key[poly]
 
 
-def _encode_obj(mesh: Mesh, src: str) -> bytes:
+def encode_obj(mesh: Mesh, src: str) -> bytes:
     names = [name for name, ids in mesh.parts.items() if len(ids)]
     for name in names:
         if not name or any(c.isspace() for c in name):
@@ -859,7 +859,7 @@ def _piece_name(node: dict, mesh: dict, primitive: dict, j: int, b: int, materia
     return f"{base}_{label or j}"
 
 
-def _part_blocks(mesh: Mesh, src: str) -> list[tuple[str, slice, slice]]:
+def part_blocks(mesh: Mesh, src: str) -> list[tuple[str, slice, slice]]:
     """(name, vertex slice, face slice) of each part, when parts are consecutive blocks.
 
     glTF gives every node its own vertices, so a mesh can be written part by part without
@@ -908,7 +908,7 @@ def _gltf_scene(mesh: Mesh, src: str):
 
     scene = trimesh.Scene()
     colors = None if mesh.colors is None else _colors_to_u8(mesh.colors)
-    for name, vs, fs in _part_blocks(mesh, src):
+    for name, vs, fs in part_blocks(mesh, src):
         kwargs = {}
         if colors is not None:
             kwargs["vertex_colors"] = np.column_stack(
