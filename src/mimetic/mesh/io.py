@@ -485,6 +485,8 @@ def _obj_faces(
 
 
 def encode_obj(mesh: Mesh, src: str) -> bytes:
+    """The OBJ text ``save_mesh`` writes for ``mesh`` (vertices in order, parts as groups), as bytes;
+    ``src`` names the destination in error messages."""
     names = [name for name, ids in mesh.parts.items() if len(ids)]
     for name in names:
         if not name or any(c.isspace() for c in name):
