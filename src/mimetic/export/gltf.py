@@ -430,6 +430,21 @@ def clip_values(rig: Rig, clip: Clip, target_names: tuple[str, ...]) -> np.ndarr
     return clip.select(rig.channel_names, {c.name: c.default for c in rig.channels}).values
 
 
+def check_export_inputs(
+    rig: Rig, morph_targets: Mapping[str, Any] | None, clip: Clip | None, clip_name: str, units: str
+) -> tuple[str, float, dict[str, np.ndarray]]:
+    """The checks every exporter makes: the file's units, the rig → file length scale, the targets
+    (``check_targets``) and the clip and its name. Raises ``ExportError`` (or ``MeshError`` for
+    units) saying what is wrong."""
+    units = check_units(units)
+    targets = check_targets(morph_targets, rig.n_vertices)
+    if not isinstance(clip_name, str) or not clip_name:
+        raise ExportError(f"clip_name must be a non-empty string; got {clip_name!r}")
+    if clip is not None and not isinstance(clip, Clip):
+        raise ExportError(f"clip must be a mimetic.rig.activations.Clip; got {type(clip).__name__}")
+    return units, UNIT_SCALE[rig.units] / UNIT_SCALE[units], targets
+
+
 def export_glb(
     rig: Rig,
     path: str | os.PathLike[str],
@@ -492,14 +507,8 @@ def export_glb(
         The folder is missing or not writable; an existing file is left as it was.
     """
     path = Path(path)
-    units = check_units(units)
-    scale = UNIT_SCALE[rig.units] / UNIT_SCALE[units]
-    targets = check_targets(morph_targets, rig.n_vertices)
+    units, scale, targets = check_export_inputs(rig, morph_targets, clip, clip_name, units)
     target_names = tuple(targets)
-    if not isinstance(clip_name, str) or not clip_name:
-        raise ExportError(f"clip_name must be a non-empty string; got {clip_name!r}")
-    if clip is not None and not isinstance(clip, Clip):
-        raise ExportError(f"clip must be a mimetic.rig.activations.Clip; got {type(clip).__name__}")
     name = name or path.stem or "mimetic"
     if name in rig.bone_names:  # a joint of the same name would confuse name-based animation binding
         name = f"{name}_root"

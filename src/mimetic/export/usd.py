@@ -70,12 +70,12 @@ from mimetic.export.gltf import (
     ROTATION_TOL,
     SPARSE_MAX_SHARE,
     ExportError,
-    check_targets,
+    check_export_inputs,
     clip_values,
     quaternions,
 )
 from mimetic.mesh.geometry import vertex_normals
-from mimetic.mesh.units import UNIT_SCALE, check_units
+from mimetic.mesh.units import UNIT_SCALE
 from mimetic.rig.activations import Clip
 from mimetic.rig.model import Rig
 
@@ -199,13 +199,7 @@ def export_usd(
         raise ExportError(
             f"{path.name}: a USD file must end in {', '.join(SUFFIXES)} (got {path.suffix or 'no suffix'!r})"
         )
-    units = check_units(units)
-    scale = UNIT_SCALE[rig.units] / UNIT_SCALE[units]
-    targets = check_targets(morph_targets, rig.n_vertices)
-    if not isinstance(clip_name, str) or not clip_name:
-        raise ExportError(f"clip_name must be a non-empty string; got {clip_name!r}")
-    if clip is not None and not isinstance(clip, Clip):
-        raise ExportError(f"clip must be a mimetic.rig.activations.Clip; got {type(clip).__name__}")
+    units, scale, targets = check_export_inputs(rig, morph_targets, clip, clip_name, units)
     values = None if clip is None else clip_values(rig, clip, tuple(targets))  # (f, c) rig order
     rotation = _source_rotation(rig) if restore_frame else np.eye(3)
     pxr = _import_pxr()
