@@ -13,12 +13,10 @@ no MSAA) against the 0.5 s-per-image goal of the renderer, and the MP4 case incl
 from __future__ import annotations
 
 import argparse
-import statistics
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
+from bench_render import median_time  # the same timing helper as the render benchmark
 from mimetic.animate.clip import from_expressions
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
@@ -33,15 +31,6 @@ from mimetic.view.video import render_clip
 GLB_GOAL_S = 2.0  # a 10 s, 60 fps clip
 FRAME_GOAL_S = 0.5  # per rendered 512² image
 FPS = 60
-
-
-def median_time(fn: Callable[[], object], repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def main() -> None:
