@@ -35,16 +35,10 @@ from mimetic.animate.expressions import expression_pose
 from mimetic.errors import MimeticError, MimeticWarning
 from mimetic.rig.activations import Clip, pose
 from mimetic.rig.model import Channel
-from mimetic.testing import small_rig
 
 MODES = ("step", "linear", "cubic", "tcb")
 FD_STEP_S = 1e-6  # finite-difference step for slopes; slope error ~ 1e-6 for these curves
 SLOPE_TOL = 1e-4
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return small_rig()
 
 
 def wavy_curve(interpolation="cubic", seed=0, n=7):

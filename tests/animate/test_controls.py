@@ -15,7 +15,6 @@ from mimetic.animate.controls import (
 )
 from mimetic.errors import MimeticError
 from mimetic.rig.activations import pose
-from mimetic.testing import small_rig
 
 # Fig. 6.15 row order and Table 6.2 muscles
 THESIS_ROWS = [
@@ -34,11 +33,6 @@ THESIS_ROWS = [
     ("Lower Lip Down", "depressor_labii", True),
     ("Lower Lip Up", "mentalis", False),
 ]
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return small_rig()
 
 
 def test_descriptive_controls_match_table_6_2_in_row_order():

@@ -33,11 +33,6 @@ LIP_TOLERANCE_CM = 0.02
 
 
 @pytest.fixture(scope="module")
-def rig():
-    return small_rig()
-
-
-@pytest.fixture(scope="module")
 def library():
     return load_library()
 

@@ -18,10 +18,8 @@ from mimetic.animate.facs import (
     parse_facs,
     parse_key,
 )
-from mimetic.engines import make_engine
 from mimetic.errors import MimeticError
 from mimetic.mesh.model import surface_positions
-from mimetic.testing import small_rig
 
 REQUIRED = (
     1,
@@ -54,16 +52,6 @@ REQUIRED = (
 )
 SIDED = (1, 2, 4, 5, 6, 7, 9, 10, 11, 12, 13, 14, 15, 16, 18, 20, 43, 46)  # L/R where the anatomy is paired
 MOVE_TOL_CM = 0.02  # "does not move": well below a visible displacement on a 23 cm head
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return small_rig()
-
-
-@pytest.fixture(scope="module")
-def engine(rig):
-    return make_engine(rig, "wire")
 
 
 def _landmarks(rig, vertices, names):

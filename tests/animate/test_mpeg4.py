@@ -26,7 +26,6 @@ from mimetic.animate.mpeg4 import (
     viseme_pose,
     visemes,
 )
-from mimetic.engines import make_engine
 from mimetic.errors import MimeticWarning
 from mimetic.head.model import make_head
 from mimetic.rig.recipe import build_rig
@@ -43,11 +42,6 @@ LANDMARK_OF = {
 def rig():
     """The default head at full resolution (13k vertices), as the FAPU are defined on a real face."""
     return build_rig(make_head())
-
-
-@pytest.fixture(scope="module")
-def engine(rig):
-    return make_engine(rig, "wire")
 
 
 @pytest.fixture(scope="module")
