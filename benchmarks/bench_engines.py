@@ -5,7 +5,7 @@
 One table: case | median time | throughput | baseline | ratio. Rows: the nonlinear wire and
 vector engines (frames/s, goal >= 200); the baked basis evaluated one frame at a time (goal
 >= 3,000 frames/s and >= 80 % of its memory-bandwidth limit; by the compiled kernel, which
-``evaluate`` runs for float32, and by BLAS axpys over ranges for comparison) and in batches (goal
+``evaluate`` runs, and by one BLAS GEMV per block for comparison) and in batches (goal
 >= 20,000 frames/s); and the baseline, a dense float64 ``activations @ deltas`` product measured in the same
 run. It also prints the bake error against the nonlinear engine and the float32 compaction error.
 
@@ -15,19 +15,19 @@ once (as many bytes as the neutral it starts from) plus the non-zero delta compo
 active channels and correctives (``bench_basis.nonzero_bytes``). It does not depend on the layout:
 zero padding that a layout reads (``CompactBasis.plan(a).bytes_read`` counts it) is not useful
 work, so the rate at which the layout streams its own bytes is printed apart, not as the goal.
-Bandwidth and evaluation are timed in alternation and the goal is the median of their ratios, so
-that machine noise (seen here: the same frame taking 44 or 75 µs minutes apart) hits both sides.
+Bandwidth and evaluation are timed in alternation (``bench_basis.interleaved``) and the goal is
+the median of their ratios, so that machine noise hits both sides.
 """
 
 from __future__ import annotations
 
 import argparse
-import statistics
+import functools
 import time
 
 import numpy as np
 
-from bench_basis import nonzero_bytes, per_call, read_bandwidth  # the same helpers as the basis study
+from bench_basis import interleaved, nonzero_bytes, per_call  # the same helpers as the basis study
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake, random_poses
 from mimetic.engines.basis import CompactBasis
@@ -87,19 +87,15 @@ def main() -> None:
 
     compact = CompactBasis.build(basis, dtype=np.float32)
     out = np.empty((n, 3), np.float32)
-    single = per_call(lambda: compact.evaluate(realistic, out=out), 50, repeats)
-    axpys = per_call(lambda: compact.evaluate(realistic, out=out, method="ranges"), 50, repeats)
+    frame = functools.partial(compact.evaluate, realistic, out=out)
+    samples = interleaved(frame, 200, 3 * repeats)  # the bandwidth limit (module docstring)
+    single = float(np.median(samples.seconds))
+    gemvs = per_call(functools.partial(compact.evaluate, realistic, out=out, method="blocks"), 50, repeats)
     batch = per_call(lambda: compact.evaluate_batch(clip), 1, repeats) / len(clip)
-    # the bandwidth limit (module docstring): bandwidth and evaluation timed in alternation
     least = nonzero_bytes(basis, realistic)  # output + non-zero deltas of the active terms
-    layout = compact.plan(realistic).bytes_read  # what the ranges actually read, padding included
-    pairs = []
-    for _ in range(repeats):
-        bw = read_bandwidth(5)
-        pairs.append((bw, per_call(lambda: compact.evaluate(realistic, out=out), 50, 3)))
-    bandwidth = statistics.median(p[0] for p in pairs)
-    paired = statistics.median(least / b / t for b, t in pairs)
-    paired_layout = statistics.median(layout / b / t for b, t in pairs)
+    layout = compact.plan(realistic).bytes_read  # what the runs actually read, padding included
+    bandwidth = float(np.median(samples.bandwidth))
+    paired, paired_layout = samples.fraction(least), samples.fraction(layout)
     rows.append(
         (
             "basis float32, 1 frame, realistic pose",
@@ -111,8 +107,8 @@ def main() -> None:
     )
     rows.append(
         (
-            "basis float32, 1 frame, realistic pose, BLAS axpys",
-            axpys,
+            "basis float32, 1 frame, realistic pose, one GEMV per block",
+            gemvs,
             1,
             f"compiled kernel ({single * 1e6:.0f} µs)",
             single,
@@ -159,7 +155,8 @@ def main() -> None:
     print(f"float32 compaction error: {err.absolute:.2g} rig units ({err.relative:.1e} of the largest delta)")
     print(
         f"single frame at {paired:.0%} of its bandwidth limit (goal 80 %; {least / 1e3:.0f} kB of output "
-        f"and non-zero deltas; the median of {len(pairs)} interleaved bandwidth and evaluation timings); "
+        f"and non-zero deltas; the median of {len(samples.seconds)} interleaved bandwidth and evaluation "
+        "timings); "
         f"its layout reads {layout / 1e3:.0f} kB ({layout / least:.1f}× that: zero padding between "
         f"support runs) at {paired_layout:.0%} of the bandwidth; "
         f"{1 / single:,.0f} frames/s (goal 3,000); batched {1 / batch:,.0f} frames/s (goal 20,000); "

@@ -26,12 +26,12 @@ from mimetic.engines.basis import (
 from mimetic.errors import ActivationError, RigError
 
 DTYPES = (np.float32, np.float16)
-METHODS = ("ranges", "blocks")
+METHODS = ("runs", "blocks")
 
 
 def methods_of(compact: CompactBasis) -> tuple[str, ...]:
-    """The evaluation methods of ``compact``: the compiled "runs" kernel needs float32 storage."""
-    return (*METHODS, "runs") if compact.dtype == np.float32 else METHODS
+    """The evaluation methods of ``compact`` (every storage dtype has both)."""
+    return METHODS
 
 
 def regional_basis(
@@ -412,7 +412,7 @@ def test_compact_corrective_is_read_exactly_when_both_channels_are_nonzero(pair)
         frames.append(a)
     frames.append(np.full(N_CHANNELS, 0.5))  # every channel and the corrective
     for a in frames:
-        extra = compact.plan(a, method="ranges").bytes_read - linear.plan(a, method="ranges").bytes_read
+        extra = compact.plan(a).bytes_read - linear.plan(a).bytes_read
         assert (extra > 0) == (a[i] != 0 and a[j] != 0)
         reference = evaluate_basis(basis, a)
         for method in ("auto", *methods_of(compact)):
@@ -425,49 +425,32 @@ def test_compact_plan_skips_channels_at_zero():
     compact = COMPACT[np.float32, False]
     neutral_bytes = compact.n_vertices * 3 * 4
     zero = compact.plan(np.zeros(N_CHANNELS))
-    assert (zero.axpy_calls, zero.gemv_calls, zero.bytes_read) == (0, 0, neutral_bytes)  # the neutral only
+    assert (zero.runs, zero.gemv_calls, zero.bytes_read) == (0, 0, neutral_bytes)  # the neutral only
     one = np.zeros(N_CHANNELS)
     one[5] = 0.3  # a regional channel
-    sparse = compact.plan(one, method="ranges")
-    assert sparse.gemv_calls == 0 and sparse.axpy_calls >= 1
-    assert neutral_bytes < sparse.bytes_read < compact.plan(one, method="blocks").bytes_read
     runs = compact.plan(one)  # auto: the kernel, over the non-zero components and short zero gaps
-    assert (runs.axpy_calls, runs.gemv_calls) == (0, 0) and runs.runs >= 1
-    assert neutral_bytes < runs.bytes_read <= sparse.bytes_read
+    assert runs.gemv_calls == 0 and runs.runs >= 1
+    assert neutral_bytes < runs.bytes_read < compact.plan(one, method="blocks").bytes_read
     everything = compact.plan(np.ones(N_CHANNELS), method="blocks")
-    assert everything.gemv_calls == compact.n_blocks and everything.axpy_calls == 0
+    assert everything.gemv_calls == compact.n_blocks and everything.runs == 0
     assert compact.nbytes == compact.plan(np.ones(N_CHANNELS)).bytes_read
-    assert compact.plan(np.ones(N_CHANNELS), method="ranges").axpy_calls == compact.n_ranges
     assert compact.plan(np.ones(N_CHANNELS)).runs == compact.n_runs
-
-
-def test_compact_auto_uses_gemv_where_most_terms_are_active_in_float16():
-    basis = regional_basis(9, n=3000, channels=40)
-    compact = CompactBasis.build(basis, dtype=np.float16)
-    everything = np.ones(basis.n_channels)
-    dense, sparse = compact.plan(everything), compact.plan(np.eye(basis.n_channels)[3])
-    assert dense.gemv_calls >= 1
-    assert dense.gemv_calls + dense.axpy_calls < compact.plan(everything, method="ranges").axpy_calls
-    assert sparse.gemv_calls == 0  # one regional channel: axpys only
-    reference = evaluate_basis(basis, everything)
-    assert np.abs(compact.evaluate(everything) - reference).max() <= compact.error_bound(everything)
 
 
 def test_compact_float16_halves_the_bytes_of_the_deltas():
     float32, float16 = COMPACT[np.float32, False], COMPACT[np.float16, False]
     neutral_bytes = float32.n_vertices * 3 * 4  # float32 in both
     everything = np.ones(N_CHANNELS)
-    deltas32 = float32.plan(everything, method="blocks").bytes_read - neutral_bytes  # the neutral rows
-    deltas16 = float16.plan(everything, method="blocks").bytes_read - neutral_bytes
-    assert deltas16 * 2 == deltas32
+    for method in METHODS:
+        deltas32 = float32.plan(everything, method=method).bytes_read - neutral_bytes
+        deltas16 = float16.plan(everything, method=method).bytes_read - neutral_bytes
+        assert deltas16 * 2 == deltas32
     assert float16.stored_nbytes < float32.stored_nbytes
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
-def test_compact_is_correct_with_tiny_ranges_blocks_and_chunks(monkeypatch, dtype):
-    """Ranges split in pieces of 7 elements, blocks of at most 2 grains, batches of 4 frames."""
-    monkeypatch.setattr(basis_module, "RANGE_MAX_ELEMENTS", 7)
-    monkeypatch.setattr(basis_module, "RANGE_GAP_VERTICES", 0)
+def test_compact_is_correct_with_gapless_runs_tiny_blocks_and_chunks(monkeypatch, dtype):
+    """Runs without gaps, blocks of at most 2 grains, batches of 4 frames."""
     monkeypatch.setattr(basis_module, "RUN_GAP_ELEMENTS", 0)
     monkeypatch.setattr(basis_module, "BLOCK_MAX_VERTICES", 2 * basis_module.BLOCK_GRAIN_VERTICES)
     monkeypatch.setattr(basis_module, "BLOCK_CALL_ELEMENTS", 0)
@@ -483,25 +466,28 @@ def test_compact_is_correct_with_tiny_ranges_blocks_and_chunks(monkeypatch, dtyp
     assert compact.n_blocks > 5
 
 
-def test_compact_runs_without_gaps_read_exactly_the_nonzero_components(monkeypatch):
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_compact_runs_without_gaps_read_exactly_the_nonzero_components(monkeypatch, dtype):
     monkeypatch.setattr(basis_module, "RUN_GAP_ELEMENTS", 0)
     basis = BASIS_WITH_CORRECTIVES
-    compact = CompactBasis.build(basis)
-    stored = np.concatenate([basis.deltas, basis.corrective_deltas]).astype(np.float32)  # (T, n, 3)
+    compact = CompactBasis.build(basis, dtype=dtype)
+    stored = np.concatenate([basis.deltas, basis.corrective_deltas]).astype(dtype)  # (T, n, 3)
     nonzero = np.count_nonzero(stored.reshape(len(stored), -1), axis=1)  # (T,)
     pairs = basis.corrective_pairs
     rng = np.random.default_rng(11)
     for a in [np.zeros(N_CHANNELS), np.ones(N_CHANNELS), *random_activations(rng, 10, active=0.3)]:
         t = np.r_[a, a[pairs[:, 0]] * a[pairs[:, 1]]]  # (T,) term activations
         plan = compact.plan(a, method="runs")
-        assert plan.bytes_read == 12 * compact.n_vertices + 4 * nonzero[t != 0].sum()
+        itemsize = np.dtype(dtype).itemsize
+        assert plan.bytes_read == 12 * compact.n_vertices + itemsize * nonzero[t != 0].sum()
         reference = evaluate_basis(basis, a)
         assert np.abs(compact.evaluate(a, method="runs") - reference).max() <= compact.error_bound(a)
 
 
-def test_compact_runs_accepts_activations_in_any_layout():
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_compact_runs_accepts_activations_in_any_layout(dtype):
     """Read-only, strided, float32 or a list: each is the same frame (one compiled signature)."""
-    compact = COMPACT[np.float32, True]
+    compact = COMPACT[dtype, True]
     a = random_activations(np.random.default_rng(12), active=0.6)
     expected = compact.evaluate(a, method="runs")
     strided = np.repeat(a, 2)[::2]
@@ -513,23 +499,20 @@ def test_compact_runs_accepts_activations_in_any_layout():
     assert np.abs(compact.evaluate(single) - reference).max() <= compact.error_bound(single)
 
 
-def test_compact_runs_leaves_out_untouched_when_an_activation_is_not_finite():
-    compact = COMPACT[np.float32, True]
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_compact_runs_leaves_out_untouched_when_an_activation_is_not_finite_or_too_large(dtype):
+    compact = COMPACT[dtype, True]
     out = np.full((compact.n_vertices, 3), 7.0, np.float32)
     a = np.zeros(N_CHANNELS)
     a[4] = np.nan
     with pytest.raises(ActivationError, match="channel 'channel_4' is not finite"):
         compact.evaluate(a, out=out, method="runs")
+    a[4] = 1e300 if dtype == np.float32 else 1e30  # float16 deltas are scaled by ~2^112 in the kernel
+    with pytest.raises(ActivationError, match=f"activations too large for {np.dtype(dtype).name}"):
+        compact.evaluate(a, out=out, method="runs")
     assert np.all(out == 7.0)
-
-
-def test_compact_runs_needs_float32_storage():
-    compact = COMPACT[np.float16, True]
-    assert compact.n_runs == 0
-    with pytest.raises(ValueError, match="method 'runs' needs float32 storage"):
-        compact.evaluate(np.zeros(N_CHANNELS), method="runs")
-    with pytest.raises(ValueError, match="method 'runs' needs float32 storage"):
-        compact.plan(np.zeros(N_CHANNELS), method="runs")
+    with pytest.raises(ValueError, match="method must be 'auto', 'runs' or 'blocks'; got 'ranges'"):
+        compact.evaluate(np.zeros(N_CHANNELS), method="ranges")
 
 
 def test_compact_drop_below_leaves_dust_out_and_accounts_for_it():
@@ -539,15 +522,13 @@ def test_compact_drop_below_leaves_dust_out_and_accounts_for_it():
     exact, cleaned = CompactBasis.build(dusty), CompactBasis.build(dusty, drop_below=1e-8)
     a = random_activations(np.random.default_rng(11), 6, active=0.3)
     for frame in a:
-        assert (
-            cleaned.plan(frame, method="ranges").bytes_read <= exact.plan(frame, method="ranges").bytes_read
-        )
+        assert cleaned.plan(frame).bytes_read <= exact.plan(frame).bytes_read
     assert cleaned.stored_nbytes < exact.stored_nbytes  # the empty and one-vertex channels stay small
     assert cleaned.compaction_error.storage >= 1e-9  # the dust it dropped
     reference = evaluate_basis(dusty, a)
     assert np.all(np.abs(cleaned.evaluate_batch(a) - reference).max(axis=(1, 2)) <= cleaned.error_bound(a))
     for frame, ref in zip(a, reference, strict=True):
-        assert np.abs(cleaned.evaluate(frame, method="ranges") - ref).max() <= cleaned.error_bound(frame)
+        assert np.abs(cleaned.evaluate(frame) - ref).max() <= cleaned.error_bound(frame)
     with pytest.raises(ValueError, match="drop_below must be a finite number"):
         CompactBasis.build(basis, drop_below=-1.0)
 
@@ -594,19 +575,17 @@ def test_compact_evaluate_batch_rejects_bad_activations(activations, message):
         COMPACT[np.float32, True].evaluate_batch(activations)
 
 
-def test_compact_finite_but_huge_activations_are_accepted_by_float32():
-    compact = COMPACT[np.float32, False]
+@pytest.mark.parametrize(("dtype", "huge"), [(np.float32, 1e200), (np.float16, 1e40)])
+def test_compact_rejects_activations_beyond_the_range_of_its_storage(dtype, huge):
+    """Finite, but float32 would turn the term into inf: refused by every path, not returned as inf."""
+    compact = COMPACT[dtype, False]
     a = np.zeros(N_CHANNELS)
-    a[2] = 1e200  # finite; float32 makes it inf, which is what the caller asked for
-    with np.errstate(all="ignore"):
-        assert compact.evaluate(a, method="ranges").shape == (compact.n_vertices, 3)
-
-
-def test_compact_float16_rejects_activations_beyond_its_range():
-    a = np.zeros(N_CHANNELS)
-    a[0] = 1e40
-    with pytest.raises(ActivationError, match="too large for float16 storage"):
-        COMPACT[np.float16, False].evaluate(a)
+    a[0] = huge
+    for method in METHODS:
+        with pytest.raises(ActivationError, match=f"too large for {np.dtype(dtype).name}"):
+            compact.evaluate(a, method=method)
+    with pytest.raises(ActivationError, match=f"too large for {np.dtype(dtype).name}"):
+        compact.evaluate_batch(a[None])
 
 
 def test_compact_build_and_evaluate_reject_bad_options():

@@ -14,36 +14,27 @@ Compact layouts
 Both layouts keep the caller's vertex order. Reordering vertices would make supports contiguous,
 but putting a 13k-vertex result back in order costs 10-50 µs here, as much as a whole frame (and
 on the generated head a reordering found by a nearest-neighbour tour of the support signatures
-did not even cut the number of ranges), so the sparsity is taken in mesh order. From Python each
-BLAS call costs ~0.5 µs, as much as streaming thousands of floats from cache, so both layouts
-trade a few padding zeros for fewer calls:
+did not even cut the number of ranges), so the sparsity is taken in mesh order.
 
-* **ranges** (term-major, one array): each term's support as vertex ranges, gaps shorter than
-  ``RANGE_GAP_VERTICES`` included, pieces of at most ``RANGE_MAX_ELEMENTS`` elements. A frame
-  copies the neutral, then makes one BLAS axpy per range of each non-zero term; terms at zero
-  cost nothing.
-* **blocks**: the vertex order cut into contiguous blocks by dynamic programming over the
-  support signatures (cost per block ``BLOCK_CALL_ELEMENTS + 3 · vertices · (terms + 1)``).
+* **runs**, for one frame: each term's non-zero components as runs in mesh order, zero gaps of at
+  most ``RUN_GAP_ELEMENTS`` elements included, their values packed in one array. One call of a
+  compiled kernel (``mimetic.engines.kernel``, numba, imported on first use) copies the neutral
+  and adds every run of every non-zero term; terms at zero cost nothing. Runs read 1.8× the
+  non-zero delta components on the generated head's baked basis; a realistic frame takes
+  ~15-25 µs, every channel ~50-70 µs.
+* **blocks**, for batches: the vertex order cut into contiguous blocks by dynamic programming over
+  the support signatures (cost per block ``BLOCK_CALL_ELEMENTS + 3 · vertices · (terms + 1)``).
   Block b stores ``[neutral; deltas of the terms touching b]`` as one (1 + k_b, 3 m_b) matrix
   W_b. A batch is one GEMM per block, ``A[:, terms_b] @ W_b``, written straight into the output
-  (no neutral pass); a dense frame is one GEMV per block.
+  (no neutral pass); ``evaluate(method="blocks")`` makes it one GEMV per block for one frame.
 
-* **runs** (float32 only): each term's non-zero components as runs in mesh order, zero gaps of at
-  most ``RUN_GAP_ELEMENTS`` elements included, their values packed in one array. One call of a
-  compiled kernel (numba, imported and loaded from its disk cache on first use) copies the neutral
-  and adds every run of every non-zero term: one call instead of one per range, and 2× the
-  non-zero delta components read instead of 3.4× by the ranges (the generated head's baked basis,
-  a realistic frame: ~20 µs instead of 50-70 µs, every channel: ~70 µs instead of ~105 µs by GEMVs).
-
-``evaluate(method="auto")`` runs the kernel for float32 storage. For float16 it takes the cheaper
-of ranges and blocks for each frame by a cost model (``AXPY_CALL_US`` …): sparse frames run
-axpys, dense ones GEMVs. ``plan`` reports the calls and the bytes read.
+``plan`` reports the runs or calls of a frame and the bytes it reads.
 
 ``float16`` storage halves the bytes of the deltas (the neutral stays float32). It is unpacked
 on the fly with two integer operations (float16 bits shifted into place in a float32, the
-exponent bias folded into the activation), because numpy's own float16 cast is not vectorised
-(~2 ns per value here); even so it is slower than float32 for one frame, and worth it only
-where memory is short.
+exponent bias folded into the activation): in the kernel run by run, and by numpy block by block
+for batches (numpy's own float16 cast is not vectorised, ~2 ns per value here). It is worth it
+only where memory is short: a frame costs the unpacking on top of float32's work.
 
 Exactness contract
 ------------------
@@ -56,7 +47,8 @@ with t the channel activations followed by the corrective products, e_N and e_j 
 errors of the neutral and of term j, M_j its largest stored component, N_max the largest
 neutral coordinate, u = 2^-24 and γ_K = K u / (1 - K u): storage rounding plus float32
 accumulation in any order. Zero activations give the float32-rounded neutral exactly. Terms
-whose activation is exactly zero are skipped, which changes nothing (their products are zero).
+whose float32 multiplier is zero are skipped, as BLAS skips an axpy with alpha 0 (an activation
+below 2^-150 contributes less than 2^-150 · M_j, far inside the bound).
 ``compaction_error`` reports what is actually reached on every unit activation.
 """
 
@@ -79,20 +71,15 @@ from mimetic.rig.activations import check_shape
 
 log = logging.getLogger(__name__)
 
-Method = Literal["auto", "ranges", "blocks", "runs"]
+Method = Literal["auto", "runs", "blocks"]
 
-RANGE_GAP_VERTICES = 512
-"""Gaps in a term's support shorter than this are stored as zeros, so one BLAS call covers both sides
-(fastest of 128-2048 on the generated head's baked and synthetic bases)."""
-
-RANGE_MAX_ELEMENTS = 10_000
-"""Longer ranges are split: OpenBLAS runs axpy on one thread up to 10,000 elements. One frame is too
-small to gain from a second thread, and on a busy machine the hand-off can cost milliseconds."""
+DTYPES = (np.dtype(np.float32), np.dtype(np.float16))
+"""Storage dtypes of the deltas."""
 
 RUN_GAP_ELEMENTS = 32
 """Zero gaps of at most this many elements between non-zero components of a term are stored in its
 runs, so the kernel's loop runs on through them (16-128 were equally fast on the generated head's
-baked basis, 0 was 4× slower: a run costs about as much as ~30 streamed floats)."""
+baked basis, 0 was 2.5× slower: a run costs about as much as ~30 streamed floats)."""
 
 BLOCK_CALL_ELEMENTS = 32_000
 """Cost of one more block in the partition, in stored elements: fewer, larger GEMMs suit batches
@@ -107,21 +94,12 @@ BLOCK_MAX_VERTICES = 4_096
 BATCH_CHUNK_FRAMES = 1_024
 """Frames evaluated together by ``evaluate_batch`` (bounds the gathered activations)."""
 
-# Cost model of one frame: least-squares fits of evaluation times on the 2-core EPYC of the
-# benchmarks (µs; it only decides between two correct methods, so it affects speed only).
-AXPY_CALL_US = 0.45  # one BLAS axpy from Python, loop included
-GEMV_CALL_US = 1.5  # one BLAS GEMV
-GEMV_FRAME_US = 3.0  # gathering the term activations for the GEMVs
-UNPACK_CALL_US = 0.8  # the two numpy calls unpacking float16 before an axpy or a GEMV
-AXPY_ELEMENT_US = {np.dtype(np.float32): 1.5e-4, np.dtype(np.float16): 5.5e-4}  # per element, from L3
-GEMV_ELEMENT_US = {np.dtype(np.float32): 1.1e-4, np.dtype(np.float16): 5e-4}
-COPY_ELEMENT_US = 1e-4  # copying the float32 neutral before the axpys
-
 U32 = 2.0**-24  # unit roundoff of float32
 U64 = 2.0**-53
 F16_BIAS = 2.0**112  # float16 bits shifted into a float32 read as value · 2^-112
 F16_HEADROOM_EXP = 15  # float16 storage maps each term's largest |delta| into [2^14, 2^15]
 F16_MIN_NORMAL = 2.0**-14
+ALPHA_LIMIT = 2.0**127  # |activation · scale| of a term must stay below it: float32 overflows at 2^128
 _F16_UNPACK_MASK = np.int32(-1879048193)  # 0x8FFFFFFF: keeps the sign and 31-3 = 28 low bits
 
 
@@ -302,7 +280,7 @@ class CompactionError:
     ----------
     absolute : float
         Max |compact - float64| over every unit activation (each channel at 1, the others at
-        0), through every evaluation path (one frame by axpy and by GEMV, batches).
+        0), through every evaluation path (one frame by the kernel and by GEMV, batches).
     relative : float
         ``absolute`` divided by the largest |delta| component of the basis.
     storage : float
@@ -320,12 +298,11 @@ class CompactionError:
 
 @dataclass(frozen=True)
 class FramePlan:
-    """How ``evaluate`` computes one frame: calls made and bytes of stored data read."""
+    """How ``evaluate`` computes one frame: what it walks and the bytes of stored data it reads."""
 
-    axpy_calls: int  # one per stored range of a non-zero term, in blocks left to axpy
-    gemv_calls: int  # one per block evaluated as a whole
-    bytes_read: int  # the float32 neutral (copied first unless every block is a GEMV) and the stored deltas
-    runs: int = 0  # stored runs of the non-zero terms walked by the compiled kernel (one call in all)
+    runs: int  # stored runs of the non-zero terms walked by the compiled kernel (one call in all)
+    gemv_calls: int  # one per block, for method="blocks"
+    bytes_read: int  # the float32 neutral and the stored deltas
 
 
 @dataclass(frozen=True)
@@ -334,15 +311,6 @@ class _Block:
     hi3: int
     xo: int  # first column of this block in the gathered term activations
     matrix: np.ndarray  # (1 + k, hi3 - lo3) [neutral; deltas] float32, or (k, hi3 - lo3) deltas float16
-
-
-def _support_ranges(support: np.ndarray, gap: int) -> np.ndarray:
-    """(r, 2) [start, stop) vertex ranges covering ``support`` (n,) bool, merging gaps < ``gap``."""
-    idx = np.flatnonzero(support)
-    if len(idx) == 0:
-        return np.zeros((0, 2), np.int64)
-    breaks = np.flatnonzero(np.diff(idx) > gap)
-    return np.stack([np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]] + 1], axis=1)
 
 
 def _partition(support: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
@@ -397,84 +365,12 @@ def _unpack_f16(stored: np.ndarray, out: np.ndarray) -> np.ndarray:
     return out.view(np.float32)
 
 
-def _runs_kernel(
-    out: np.ndarray,
-    neutral: np.ndarray,
-    a: np.ndarray,
-    pairs: np.ndarray,
-    index: np.ndarray,
-    runs: np.ndarray,
-    data: np.ndarray,
-) -> bool:
-    """out = neutral + Σ_j t_j D_j over the stored runs of the non-zero terms (compiled by numba).
-
-    Parameters
-    ----------
-    out : (n, 3) float32
-        Written.
-    neutral : (n, 3) float32
-    a : (c,) float64
-        Channel activations: t_j = a_j for j < c; t_(c+k) = a_(pairs[k, 0]) · a_(pairs[k, 1]).
-    pairs : (k, 2) int32
-    index : (T + 1,) int32
-        Term j's runs are ``runs[index[j] : index[j + 1]]``.
-    runs : (R, 3) int32
-        (first element in ``out`` flattened, length, first element in ``data``) of each run.
-    data : (Σ length,) float32
-        The stored values of the runs.
-
-    Returns
-    -------
-    finite : bool
-        False, with ``out`` untouched, if an activation is not finite.
-    """
-    c = len(a)
-    for i in range(c):
-        if not math.isfinite(a[i]):
-            return False
-    out, neutral = out.reshape(-1), neutral.reshape(-1)  # (3n,) views
-    for i in range(len(out)):  # faster than out[:] = neutral in numba 0.68
-        out[i] = neutral[i]
-    for j in range(len(index) - 1):
-        t = a[j] if j < c else a[pairs[j - c, 0]] * a[pairs[j - c, 1]]
-        if t == 0.0:  # skipped: exact, its product is zero (a product may underflow to zero)
-            continue
-        alpha = np.float32(t)  # as BLAS saxpy rounds its alpha
-        for r in range(index[j], index[j + 1]):
-            start, m, offset = runs[r, 0], runs[r, 1], runs[r, 2]
-            y = out[start : start + m]  # views indexed from 0: numba then vectorises the loop
-            x = data[offset : offset + m]
-            for i in range(m):
-                y[i] += alpha * x[i]
-    return True
-
-
 @functools.cache
-def _compiled_runs_kernel():  # -> numba dispatcher
-    """``_runs_kernel`` compiled for its one signature (numba imported here, on first use: ~0.3 s).
+def _kernel():  # -> the mimetic.engines.kernel module
+    """The compiled kernel's module, imported on first use: ``import mimetic`` stays fast without numba."""
+    from mimetic.engines import kernel
 
-    The machine code is cached on disk beside this module (``cache=True``): the first call on a
-    machine compiles for ~1 s, later processes load it. Inputs are declared read-only, which takes
-    writeable arrays too, so a read-only activation vector does not compile a second version.
-    Only FMA contraction is allowed (``fastmath={"contract"}``): the full set would assume finite
-    values and drop the check of the activations.
-    """
-    import numba  # lazy: ``import mimetic`` must stay fast
-    from numba import types
-
-    def vector(dtype, ndim=1, readonly=True):
-        return types.Array(dtype, ndim, "C", readonly=readonly)
-
-    signature = types.boolean(
-        vector(types.float32, 2, readonly=False),
-        vector(types.float32, 2),
-        vector(types.float64),
-        vector(types.int32, 2),
-        vector(types.int32),
-        vector(types.int32, 2),
-        vector(types.float32),
-    )
-    return numba.njit(signature, cache=True, nogil=True, fastmath={"contract"})(_runs_kernel)
+    return kernel
 
 
 class CompactBasis:
@@ -492,9 +388,8 @@ class CompactBasis:
         Storage of the deltas: float32 or float16 (the neutral is always float32).
     compaction_error : CompactionError
         Errors reached on every unit activation (see ``CompactionError``).
-    n_blocks, n_ranges, n_runs : int
-        Blocks of the layout, stored ranges over all terms (one axpy each), and stored runs of the
-        kernel over all terms (0 for float16 storage).
+    n_blocks, n_runs : int
+        Blocks of the batch layout, and stored runs of the kernel over all terms.
     stored_nbytes : int
         Bytes held.
     """
@@ -525,7 +420,7 @@ class CompactBasis:
         if not isinstance(basis, Basis):
             raise TypeError(f"CompactBasis.build needs a Basis; got {type(basis).__name__}")
         dtype = np.dtype(dtype)
-        if dtype not in AXPY_ELEMENT_US:
+        if dtype not in DTYPES:
             raise ValueError(f"dtype must be float32 or float16; got {dtype}")
         if not (math.isfinite(drop_below) and drop_below >= 0):
             raise ValueError(f"drop_below must be a finite number ≥ 0 (rig units); got {drop_below}")
@@ -566,36 +461,13 @@ class CompactBasis:
         self._neutral_error = float(np.abs(self._neutral - basis.neutral).max())
         self._neutral_peak = float(np.abs(self._neutral).max())
 
-        # 2. ranges, for the axpys: each term's support ranges in mesh order, all in one array
-        unpack_us = UNPACK_CALL_US * (dtype == np.float16)
-        plans, pieces, offset = [], [], 0
-        self._term_axpy_us = []  # cost-model µs of all of a term's axpys
-        for j in range(T):
-            plan = []
-            for start, stop in (3 * _support_ranges(support[j], RANGE_GAP_VERTICES)).tolist():
-                pieces.append(stored[j, start:stop])
-                for piece in range(start, stop, RANGE_MAX_ELEMENTS):  # (offx, m, offy)
-                    plan.append((offset + piece - start, min(RANGE_MAX_ELEMENTS, stop - piece), piece))
-                offset += stop - start
-            plans.append(tuple(plan))
-            elements = sum(m for _, m, _ in plan)
-            self._term_axpy_us.append(
-                len(plan) * (AXPY_CALL_US + unpack_us) + elements * AXPY_ELEMENT_US[dtype]
-            )
-        self._range_data = np.concatenate(pieces) if pieces else np.zeros(0, dtype)  # (Σ 3 · range,)
-        self._range_data.setflags(write=False)
-        self._plans = tuple(plans)
-        self._longest_range = max((m for plan in plans for _, m, _ in plan), default=0)
-
-        # 3. runs, for the compiled kernel (float32): each term's non-zero components, short gaps included
-        self._runs = self._run_index = self._run_data = None
+        # 2. runs, for the kernel: each term's non-zero components, short gaps included
         self._run_pairs = np.ascontiguousarray(self._pairs, np.int32)  # (k, 2)
-        if dtype == np.float32:
-            self._build_runs(stored)
+        self._build_runs(stored)
 
-        # 4. blocks, for the GEMVs and GEMMs: [neutral; deltas of the terms touching the block]
+        # 3. blocks, for the GEMMs: [neutral; deltas of the terms touching the block]
         neutral_row = dtype == np.float32  # float16 blocks get the float32 neutral row when unpacked
-        blocks, gather, gemv_us = [], [], 0.0
+        blocks, gather = [], []
         for lo, hi, terms in _partition(support):
             rows = stored[terms, 3 * lo : 3 * hi]  # (k_b, 3 m_b)
             if neutral_row:
@@ -604,25 +476,22 @@ class CompactBasis:
             matrix.setflags(write=False)
             blocks.append(_Block(3 * lo, 3 * hi, len(gather), matrix))
             gather += [0, *(terms + 1).tolist()]  # column 0 of the term activations is 1 (the neutral)
-            gemv_us += GEMV_CALL_US + unpack_us + matrix.size * GEMV_ELEMENT_US[dtype]
         self._blocks = tuple(blocks)
         self._gather = np.array(gather, np.int64)  # (Σ (1 + k_b),) into [1, t]
-        self._gemv_frame_us = GEMV_FRAME_US + gemv_us - 3 * n * COPY_ELEMENT_US  # the axpys copy the neutral
         self.stored_nbytes = int(
-            self._range_data.nbytes + sum(b.matrix.nbytes for b in blocks) + self._neutral.nbytes
+            self._neutral.nbytes
+            + sum(b.matrix.nbytes for b in blocks)
+            + sum(x.nbytes for x in (self._runs, self._run_index, self._run_data))
         )
-        if self._runs is not None:
-            self.stored_nbytes += int(self._runs.nbytes + self._run_index.nbytes + self._run_data.nbytes)
 
-        # 5. what is reached on unit activations, through every path
+        # 4. what is reached on unit activations, through every path
         self.compaction_error = self._measure(basis)
         log.debug(
-            "compact basis: %d vertices, %d terms, %s; %d blocks, %d ranges, %d runs, %.2f MB; error %.3g",
+            "compact basis: %d vertices, %d terms, %s; %d blocks, %d runs, %.2f MB; error %.3g",
             n,
             T,
             dtype.name,
             len(blocks),
-            self.n_ranges,
             self.n_runs,
             self.stored_nbytes / 1e6,
             self.compaction_error.absolute,
@@ -630,7 +499,8 @@ class CompactBasis:
         return self
 
     def _build_runs(self, stored: np.ndarray) -> None:
-        """The kernel's layout of ``stored`` (T, 3n) float32: non-zero runs, gaps ≤ RUN_GAP_ELEMENTS."""
+        """The kernel's layout of ``stored`` (T, 3n): non-zero runs, gaps ≤ RUN_GAP_ELEMENTS; float16
+        values are kept as their bits (int16)."""
         T, size = stored.shape
         starts, stops, counts = [], [], []
         for j in range(T):
@@ -646,15 +516,25 @@ class CompactBasis:
         assert size < 2**31 and total < 2**31, "the kernel indexes in int32"
         element = np.repeat(start - offset, length) + np.arange(total)  # (total,) output element
         term = np.repeat(np.repeat(np.arange(T), counts), length)  # (total,)
-        self._run_data = np.ascontiguousarray(stored[term, element], np.float32)
+        data = np.ascontiguousarray(stored[term, element])
+        self._run_data = data.view(np.int16) if data.dtype == np.float16 else data  # (total,)
         self._runs = np.stack([start, length, offset], axis=1).astype(np.int32)  # (R, 3)
         self._run_index = np.r_[0, np.cumsum(counts)].astype(np.int32)  # (T + 1,)
-        for array in (self._run_data, self._runs, self._run_index, self._run_pairs):
+        for array in (self._run_data, self._runs, self._run_index, self._run_pairs, self._scale):
             array.setflags(write=False)
+        self._kernel_inputs = (
+            self._neutral,
+            self._scale,
+            self._run_pairs,
+            self._run_index,
+            self._runs,
+            self._run_data,
+            int(length.max(initial=0)),
+        )
 
     def _measure(self, basis: Basis) -> CompactionError:
         c = self._n_channels
-        methods = ("ranges", "blocks") if self._runs is None else ("ranges", "blocks", "runs")
+        methods = ("runs", "blocks")
         worst = 0.0
         for start in range(0, c, 32):
             units = np.eye(c)[start : start + 32]  # (u, c)
@@ -676,12 +556,8 @@ class CompactBasis:
         return len(self._blocks)
 
     @property
-    def n_ranges(self) -> int:
-        return sum(len(plan) for plan in self._plans)
-
-    @property
     def n_runs(self) -> int:
-        return 0 if self._runs is None else len(self._runs)
+        return len(self._runs)
 
     # ---- one frame
 
@@ -715,38 +591,18 @@ class CompactBasis:
             active += products
         return t, active
 
-    def _method(self, active: list[int], method: Method) -> Literal["ranges", "blocks", "runs"]:
-        """The method to run: "auto" resolves to the kernel for float32 storage, else to the cheaper
-        of ranges and blocks for this frame by the cost model."""
-        if method == "runs" and self._runs is None:
-            raise ValueError(
-                "method 'runs' needs float32 storage; build the CompactBasis with dtype=np.float32"
-            )
-        if method != "auto":
-            return method
-        if self._runs is not None:
-            return "runs"
-        axpy_us = sum(self._term_axpy_us[j] for j in active)
-        return "ranges" if axpy_us <= self._gemv_frame_us else "blocks"
-
     def plan(self, activations: np.ndarray, *, method: Method = "auto") -> FramePlan:
-        """The calls ``evaluate(activations, method=method)`` makes and the bytes it reads."""
+        """What ``evaluate(activations, method=method)`` walks and the bytes it reads."""
         _, active = self._frame(activations)
-        method = self._method(active, _checked(method))
-        if method == "runs":
-            index = self._run_index
-            runs = sum(int(index[j + 1] - index[j]) for j in active)
-            elements = sum(int(self._runs[index[j] : index[j + 1], 1].sum()) for j in active)
-            read = self._neutral.nbytes + 4 * elements
-            return FramePlan(axpy_calls=0, gemv_calls=0, bytes_read=int(read), runs=runs)
-        if method == "blocks":
+        if _checked(method) == "blocks":
             neutral = 4 * (self.dtype == np.float16)  # float16 blocks read the float32 neutral apart
             read = sum(b.matrix.nbytes + (b.hi3 - b.lo3) * neutral for b in self._blocks)
-            return FramePlan(axpy_calls=0, gemv_calls=len(self._blocks), bytes_read=int(read))
-        calls = sum(len(self._plans[j]) for j in active)
-        elements = sum(m for j in active for _, m, _ in self._plans[j])
-        read = self._neutral.nbytes + elements * self.dtype.itemsize
-        return FramePlan(axpy_calls=calls, gemv_calls=0, bytes_read=int(read))
+            return FramePlan(runs=0, gemv_calls=len(self._blocks), bytes_read=int(read))
+        index = self._run_index
+        runs = sum(int(index[j + 1] - index[j]) for j in active)
+        elements = sum(int(self._runs[index[j] : index[j + 1], 1].sum()) for j in active)
+        read = self._neutral.nbytes + self.dtype.itemsize * elements
+        return FramePlan(runs=runs, gemv_calls=0, bytes_read=int(read))
 
     @property
     def nbytes(self) -> int:
@@ -764,77 +620,57 @@ class CompactBasis:
             In the order of ``channels``.
         out : (n, 3) float32, optional
             Written in place and returned (saves an allocation per frame).
-        method : "auto", "ranges", "blocks" or "runs"
-            "ranges": the neutral, then one axpy per stored range of each non-zero term;
-            "blocks": one GEMV per block; "runs" (float32 storage only): one call of the compiled
-            kernel over the stored runs of the non-zero terms; "auto": "runs" for float32, else
-            the cheaper for this frame by the cost model (``plan`` tells). All give results within
-            ``error_bound``.
+        method : "auto", "runs" or "blocks"
+            "runs" (= "auto"): one call of the compiled kernel over the stored runs of the non-zero
+            terms; "blocks": one GEMV per block. Both give results within ``error_bound``.
 
         Returns
         -------
         vertices : (n, 3) float32, the basis's vertex order, rig units (a new array unless ``out``).
         """
-        if (method == "auto" and self._runs is not None) or method == "runs":
+        if method == "auto" or _checked(method) == "runs":
             return self._evaluate_runs(activations, out)
-        t, active = self._frame(activations)  # (T,) floats, non-zero indices
-        method = self._method(active, _checked(method))
+        t, _ = self._frame(activations)  # (T,) floats
         out = _output(out, (self.n_vertices, 3))
-        flat = out.reshape(-1)  # (3n,)
-        if method == "blocks":
-            self._gemv(t, flat)
-            return out
-        np.copyto(flat, self._neutral_flat)
-        if self.dtype == np.float16:
-            self._axpy_f16(t, active, flat)
-            return out
-        saxpy, data, plans = blas.saxpy, self._range_data, self._plans
-        for j in active:
-            alpha = t[j]
-            for offx, m, offy in plans[j]:
-                saxpy(data, flat, m, alpha, offx, 1, offy)
+        self._gemv(t, out.reshape(-1))
         return out
 
-    def _evaluate_runs(self, activations: np.ndarray, out: np.ndarray | None) -> np.ndarray:
-        """``evaluate`` by the compiled kernel: the common case (a finite C-contiguous (c,) vector)
-        costs one numpy conversion and one call; anything else goes through ``check_activations``."""
-        if self._runs is None:
-            self._method([], "runs")  # raises
-        try:
-            a = np.asarray(activations, dtype=np.float64)
-            usable = a.shape == (self._n_channels,) and a.flags.c_contiguous
-        except (TypeError, ValueError):
-            usable = False
-        if not usable:
-            a = np.ascontiguousarray(check_activations(self.channels, activations, ndim=1))
-        shape = (self.n_vertices, 3)
+    def _evaluate_runs(self, activations: object, out: np.ndarray | None) -> np.ndarray:
+        """``evaluate`` by the compiled kernel. A float64 (c,) vector and a float32 (n, 3) ``out``
+        cost one call, whose checks are in the kernel; anything else is converted, or refused with
+        the precise message of ``check_activations`` or ``_output``."""
+        kernel = _kernel()
         if out is None:
-            out = np.empty(shape, np.float32)
-        elif getattr(out, "shape", None) != shape:
-            _output(out, shape)  # raises
-        kernel = _compiled_runs_kernel()
+            out = np.empty((self.n_vertices, 3), np.float32)
         try:
-            finite = kernel(
-                out, self._neutral, a, self._run_pairs, self._run_index, self._runs, self._run_data
-            )
-        except TypeError:  # numba has no version for this out: not a writeable C-contiguous float32 array
-            _output(out, shape)  # raises the ValueError
-            raise
-        if not finite:
-            check_activations(self.channels, activations, ndim=1)  # raises: an activation is not finite
-            raise AssertionError("the kernel found a non-finite activation that check_activations accepts")
+            status = kernel.evaluate_runs(out, activations, *self._kernel_inputs)
+        except TypeError:  # numba has no version for these types (a list, float32, a read-only out, …)
+            status = kernel.BAD_SHAPE
+        if status == kernel.OK:
+            return out
+        if status == kernel.TOO_LARGE:
+            raise self._too_large()
+        a = np.ascontiguousarray(check_activations(self.channels, activations, ndim=1))  # may raise
+        status = kernel.evaluate_runs(_output(out, (self.n_vertices, 3)), a, *self._kernel_inputs)
+        if status == kernel.TOO_LARGE:
+            raise self._too_large()
+        if status != kernel.OK:
+            raise AssertionError(f"the kernel refused inputs check_activations accepts (status {status})")
         return out
 
-    def _alphas(self, t: np.ndarray) -> np.ndarray:
-        """Term activations (..., T) as they multiply the stored values (float16 scale folded in)."""
-        if self.dtype == np.float32:
-            return t
-        alphas = t * self._scale
-        if not np.all(np.abs(alphas) < 2.0**127):
-            raise ActivationError(
+    def _too_large(self) -> ActivationError:
+        if self.dtype == np.float16:
+            return ActivationError(
                 "activations too large for float16 storage (|activation · delta| ≥ 2^30 rig units); "
                 "build the CompactBasis with dtype=np.float32"
             )
+        return ActivationError("activations too large for float32 (|activation| ≥ 2^127); check their units")
+
+    def _alphas(self, t: np.ndarray) -> np.ndarray:
+        """Term activations (..., T) as they multiply the stored values (float16 scale folded in)."""
+        alphas = t * self._scale
+        if not np.all(np.abs(alphas) < ALPHA_LIMIT):
+            raise self._too_large()
         return alphas
 
     def _gemv(self, t: list[float], flat: np.ndarray) -> None:
@@ -848,16 +684,6 @@ class CompactBasis:
         for block in self._blocks:
             matrix = self._block_matrix(block, buffer)  # (1 + k_b, 3 m_b)
             sgemv(1.0, matrix.T, x, 0.0, flat, block.xo, 1, block.lo3, 1, 0, 1)
-
-    def _axpy_f16(self, t: list[float], active: list[int], flat: np.ndarray) -> None:
-        """flat += t_j D_j over the ranges of the non-zero terms, each range unpacked first."""
-        alphas = self._alphas(np.array(t)).tolist()
-        buffer = np.empty(self._longest_range, np.int32)
-        saxpy, data = blas.saxpy, self._range_data
-        for j in active:
-            for offx, m, offy in self._plans[j]:
-                values = _unpack_f16(data[offx : offx + m], buffer[:m])  # value · 2^-112
-                saxpy(values, flat, m, alphas[j], 0, 1, offy)
 
     def _unpack_buffer(self) -> np.ndarray | None:
         if self.dtype == np.float32:
@@ -935,8 +761,8 @@ class CompactBasis:
 
 
 def _checked(method: str) -> Method:
-    if method not in ("auto", "ranges", "blocks", "runs"):
-        raise ValueError(f"method must be 'auto', 'ranges', 'blocks' or 'runs'; got {method!r}")
+    if method not in ("auto", "runs", "blocks"):
+        raise ValueError(f"method must be 'auto', 'runs' or 'blocks'; got {method!r}")
     return method
 
 
