@@ -399,3 +399,34 @@ def test_ict_teeth_follow_head_or_jaw(ict, ict_rigged: RigResult) -> None:
         for ids in teeth
     ]
     assert sum(right) >= 30, f"{32 - sum(right)} teeth blend head and jaw"
+
+
+def test_ict_eyelashes_close_with_the_lid(ict, ict_rigged: RigResult) -> None:
+    """ICT's lashes are separate strips: riveted to the lid margin, they swing down with a blink
+    instead of following whichever reference surface lies nearest to each lash vertex (which
+    stretched them 4x into spikes at the canthi)."""
+    mesh, _, meta = ict
+    rig = ict_rigged.rig
+    engine = make_engine(rig, "wire")
+    ranges = {p["name"]: p["vertex_range"] for p in meta["parts"]}
+    lashes = {}
+    for side in ("left", "right"):
+        first, last = ranges[f"Eyelashes {side}"]
+        lashes[side] = np.arange(first, last + 1)
+    attached = engine.chain.attachments.vertices
+    assert all(np.isin(ids, attached).all() for ids in lashes.values())
+    channel = rig.channels[rig.channel_index("eyelid_upper_L")]
+    rest = engine.deform(np.array([c.default for c in rig.channels]))
+    closed = engine.deform(np.array([channel.maximum if c is channel else c.default for c in rig.channels]))
+    faces = mesh.faces[np.isin(mesh.faces[:, 0], lashes["left"])]
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    stretch = np.linalg.norm(closed[edges[:, 0]] - closed[edges[:, 1]], axis=1) / np.linalg.norm(
+        rest[edges[:, 0]] - rest[edges[:, 1]], axis=1
+    )
+    assert np.percentile(stretch, 99) < 1.5 and stretch.max() < 2.5
+    eye = rig.bone("eye_L")
+    radius = np.linalg.norm(eye.tail - eye.head)
+    assert np.linalg.norm(closed[lashes["left"]] - eye.head, axis=1).min() > radius  # never in the eyeball
+    upper = lashes["left"][rest[lashes["left"], 1] > eye.head[1]]
+    assert np.median(closed[upper, 1] - rest[upper, 1]) < -0.3 * radius  # the upper lashes came down
+    np.testing.assert_array_equal(closed[lashes["right"]], rest[lashes["right"]])

@@ -1,7 +1,8 @@
 """Pieces every engine shares: the deformation chain after the muscles, and muscle geometry.
 
 The chain follows the automated rigging thesis (§4.3.2): muscles -> skull -> creases ->
-skinning -> eyelid sculptors. The muscle stage is engine-specific; the rest is here.
+skinning -> eyelid sculptors, then the accessories riveted to the skin (``attach``). The muscle
+stage is engine-specific; the rest is here.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import LinearNDInterpolator
 
+from mimetic.engines.attach import find_attachments, ride
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.head.parts import eyeball_profile
 from mimetic.mesh.geometry import vertex_normals
@@ -172,7 +174,8 @@ def crease_deltas(rig: Rig) -> dict[str, np.ndarray]:
 
 
 class Chain:
-    """The stages after the muscles: skull push, creases, skinning, eyelid sculptors (prepared once)."""
+    """The stages after the muscles: skull push, creases, skinning, eyelid sculptors, accessories
+    riveted to the skin (prepared once)."""
 
     def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
         self.rig = rig
@@ -201,6 +204,7 @@ class Chain:
             self.lids.append(
                 (ids[outside].astype(np.int64), rig.bone_index(f"eye_{side}"), bone.head, bone.tail)
             )
+        self.attachments = find_attachments(rig.mesh, rig.scale, rig.skin_weights)
 
     def _eyeball_clearance(self, points: np.ndarray, centre: np.ndarray, gaze: np.ndarray) -> tuple:
         """Distances (k,) of points from the eye centre and the sculptor's limit (k,) for each."""
@@ -212,7 +216,8 @@ class Chain:
         return dist, limit
 
     def apply(self, deformed: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """Lip contact, skull push (+Z onto the rest forehead), creases, skinning, lid sculptors.
+        """Lip contact, skull push (+Z onto the rest forehead), creases, skinning, lid sculptors,
+        then the accessories (eyelashes and the like) placed on the skin they ride.
 
         ``deformed`` (n, 3) is the rest skin moved by the muscles; returns (n, 3).
         """
@@ -240,7 +245,7 @@ class Chain:
             inside = dist < limit
             d = v[ids[inside]] - centre
             v[ids[inside]] = centre + d * (limit[inside] / dist[inside])[:, None]
-        return v
+        return ride(self.attachments, self.rig.mesh.vertices, v, transforms) if len(self.attachments) else v
 
 
 def surface_normals(rig: Rig) -> np.ndarray:
