@@ -430,3 +430,37 @@ def test_ict_eyelashes_close_with_the_lid(ict, ict_rigged: RigResult) -> None:
     upper = lashes["left"][rest[lashes["left"], 1] > eye.head[1]]
     assert np.median(closed[upper, 1] - rest[upper, 1]) < -0.3 * radius  # the upper lashes came down
     np.testing.assert_array_equal(closed[lashes["right"]], rest[lashes["right"]])
+
+
+def test_ict_mouth_opens_without_tearing_at_the_corners_or_dragging_the_gums(
+    ict, ict_rigged: RigResult
+) -> None:
+    """ICT's lips curl into a deeper commissure than the reference's, and its gums and tongue are one
+    piece: with weights interpolated as they come, the skin beside the corners tore into vertical
+    walls (edges stretched 8.6× at the 99th percentile) and the upper gums hung into a grille (8.6×).
+    The corner smoothing and the nearer-tooth-row rule keep both to a slope."""
+    mesh, _, meta = ict
+    rig = ict_rigged.rig
+    engine = make_engine(rig, "wire")
+    values = np.array([c.default for c in rig.channels])
+    rest = engine.deform(values)
+    values[rig.channel_index("jaw_open")] = 0.25
+    opened = engine.deform(values)
+    ranges = {p["name"]: p["vertex_range"] for p in meta["parts"]}
+
+    def stretch(faces: np.ndarray) -> np.ndarray:
+        edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+        return np.linalg.norm(opened[edges[:, 0]] - opened[edges[:, 1]], axis=1) / np.linalg.norm(
+            rest[edges[:, 0]] - rest[edges[:, 1]], axis=1
+        )
+
+    corners = rig.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
+    face = mesh.faces[(mesh.faces <= ranges["Face"][1]).all(axis=1)]
+    centre = rest[face].mean(axis=1)
+    beside = (np.linalg.norm(centre[:, None] - corners[None], axis=2).min(axis=1) < 2.0) & (
+        np.abs(centre[:, 0]) > np.abs(corners[:, 0]).mean() + 0.3
+    )
+    assert np.percentile(stretch(face[beside]), 99) < 5.0
+    first, last = ranges["Gums and tongue"]
+    gums = mesh.faces[((mesh.faces >= first) & (mesh.faces <= last)).all(axis=1)]
+    assert np.percentile(stretch(gums), 99) < 3.0

@@ -20,10 +20,12 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
+from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
-from mimetic.mesh.geometry import connected_components, vertex_normals
+from mimetic.mesh.geometry import connected_components, edges_unique, neighbour_mean, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.rig.model import Bone, Rig, Wire
 
@@ -40,6 +42,7 @@ RIGID_PARTS = {
 }
 DEFORMABLE_PARTS = ("skin", "mouth", "ear_L", "ear_R")
 MOUTH_PARTS = ("teeth_upper", "teeth_lower", "tongue", "mouth")
+CORNER_SMOOTH_RADIUS = 1.0  # cm (reference frame) around each mouth corner where the jaw weight is smoothed
 
 
 def rig_frame(to_model: Similarity) -> Similarity:
@@ -115,8 +118,8 @@ def _separate_parts(
     teeth, tongue and cavity (grown by 10 %). The mouth parts' centroid heights fall into two rows
     (the user's upper and lower teeth; 1-D 2-means): a part no taller than ``MAX_TOOTH_SPAN`` times
     the distance between the rows follows the head when its centroid is in the upper row's half and
-    the jaw otherwise; a taller one (gums joined to the tongue, a mouth cavity) keeps interpolated,
-    blended weights.
+    the jaw otherwise; a taller one (gums joined to the tongue, a mouth cavity) is soft (see
+    ``_soft_mouth_jaw``).
     """
     mesh_ref = reference.mesh
     ref_part = np.full(mesh_ref.n_faces, "", dtype=object)
@@ -162,6 +165,54 @@ def _separate_parts(
     return {part: np.sort(np.concatenate(ids)) for part, ids in rigid.items()}, soft
 
 
+def _soft_mouth_jaw(points: np.ndarray, upper_teeth: np.ndarray, lower_teeth: np.ndarray) -> np.ndarray:
+    """Jaw weight (k,) of soft mouth vertices ``points`` (k, 3) from their distances to the upper and
+    lower teeth's vertices (reference frame): ``smoothstep(0.3, 0.7, d_upper / (d_upper + d_lower))``.
+
+    Gums joined to the tongue in one piece (as in ICT-FaceKit) would otherwise take weights from
+    whichever reference surface lies nearest, blended ones that drag the upper gums down into a
+    grille when the jaw opens. The nearer row decides instead: the gums and their papillae between
+    the teeth follow their own row, the tongue inside the lower arch rides the jaw, and only the
+    back, where the two gums meet, stretches.
+    """
+    d_upper, _ = cKDTree(upper_teeth).query(points)
+    d_lower, _ = cKDTree(lower_teeth).query(points)
+    return smoothstep(0.3, 0.7, d_upper / np.maximum(d_upper + d_lower, 1e-12))
+
+
+def _smooth_mouth_corners(
+    weights: np.ndarray, vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray, radius: float, jaw: int
+) -> np.ndarray:
+    """``weights`` (n, bones) with the jaw weight (column ``jaw``) smoothed over ``faces`` within
+    ``radius`` of the ``corners`` (2, 3), the head bone (column 0) taking the rest.
+
+    The reference's lips meet at its corners, a user's lips often curl into a deeper commissure:
+    there the interpolated weights can jump from the upper lip's 0 to the lower lip's 1 across one
+    row of faces, which tears open with the jaw. Neighbour averaging, as many times as it takes to
+    spread over half the radius at the mesh's edge length there, makes the jump a slope, as the
+    recipe does around the reference's corners; the smoothed weight fades back into the
+    interpolated one over the outer half of the radius.
+    """
+    distance = np.linalg.norm(vertices[:, None] - corners[None], axis=2).min(axis=1)  # (n,)
+    local = faces[(distance < radius)[faces].all(axis=1)]
+    if len(local) == 0:
+        return weights
+    edges = edges_unique(local)
+    edge = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1).mean()
+    steps = int(np.clip(np.ceil((0.5 * radius / edge) ** 2), 1, 400))
+    average = neighbour_mean(local, len(vertices))
+    around = np.unique(local)
+    value = weights[:, jaw].copy()
+    for _ in range(steps):
+        value[around] = (average @ value)[around]
+    out = weights.copy()
+    blend = 1.0 - smoothstep(0.5 * radius, radius, distance[around])  # no seam at the radius
+    out[around, jaw] += blend * (value[around] - weights[around, jaw])
+    out[around, 0] = np.clip(1.0 - out[around, 1:].sum(axis=1), 0.0, None)
+    out[around] /= out[around].sum(axis=1, keepdims=True)
+    return out
+
+
 def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: dict | None = None) -> Rig:
     """The rig of ``reference`` (built on the fitted reference, reference frame) on ``user``'s vertices.
 
@@ -203,6 +254,23 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     for part, ids in rigid.items():
         weights[ids] = 0.0
         weights[ids, reference.bone_index(RIGID_PARTS[part])] = 1.0
+    if soft_mouth.any() and "teeth_upper" in rigid and "teeth_lower" in rigid:
+        jaw = _soft_mouth_jaw(
+            in_model[soft_mouth], in_model[rigid["teeth_upper"]], in_model[rigid["teeth_lower"]]
+        )
+        weights[soft_mouth] = 0.0
+        weights[soft_mouth, reference.bone_index("head")] = 1.0 - jaw
+        weights[soft_mouth, reference.bone_index("jaw")] = jaw
+    mouth_corners = to_rig.apply(reference.landmark_positions(["mouth_corner_L", "mouth_corner_R"]))
+    soft_faces = user.faces[~in_rigid[user.faces].any(axis=1)]
+    weights = _smooth_mouth_corners(
+        weights,
+        rig_vertices,
+        soft_faces,
+        mouth_corners,
+        CORNER_SMOOTH_RADIUS * to_rig.scale,
+        reference.bone_index("jaw"),
+    )
     weights = sp.csr_matrix(weights)
 
     # regions and wire sets: membership by interpolated indicator

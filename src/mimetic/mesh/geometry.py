@@ -137,6 +137,14 @@ def vertex_adjacency(faces: np.ndarray, n: int) -> sparse.csr_matrix:
     return sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
 
+def neighbour_mean(faces: np.ndarray, n: int) -> sparse.csr_matrix:
+    """(n, n) operator averaging each vertex's neighbours along the edges of ``faces`` (m, 3):
+    ``vertex_adjacency`` with rows divided by the degree (a vertex without edges averages to 0)."""
+    adjacency = vertex_adjacency(faces, n)
+    degree = np.asarray(adjacency.sum(axis=1)).ravel()
+    return sparse.diags(1.0 / np.maximum(degree, 1.0)) @ adjacency
+
+
 def connected_components(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     """Connected components of ``n`` vertices joined by the edges of ``faces`` (m, 3).
 

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
-from mimetic.head.shape import skin_geometry
+from mimetic.head.shape import skin_geometry, smoothstep
 from mimetic.head.topology import build_topology
 from mimetic.mesh.geometry import closest_on_polyline
 from mimetic.mesh.model import SurfacePoint
@@ -344,11 +344,6 @@ def _bones(head: Head) -> tuple[list[Bone], np.ndarray]:
     return [order[n] for n in BONES], pivot
 
 
-def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
-    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
-    return t * t * (3 - 2 * t)
-
-
 def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     """Smooth weights (n, bones) from regions and anatomy: head, jaw taper, lids, eyeballs."""
     n = head.mesh.n_vertices
@@ -362,14 +357,14 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     if normal[1] < 0:
         normal = -normal
     height = (v - stomion) @ normal
-    jaw = _smoothstep(0.3, -1.3, height)
+    jaw = smoothstep(0.3, -1.3, height)
     # the skin below the mandible's lower border (the line menton - gonion, seen from the side) is
     # only stretched by the chin: its weight fades with the depth below the border, so the throat stays
     menton, gonion = head.landmark_positions(["menton", "gonion_L"])
     border = np.array([0.0, gonion[2] - menton[2], menton[1] - gonion[1]])  # its normal, pointing up
     border /= np.linalg.norm(border) * np.sign(border[1])
     below = -((v - menton) @ border)
-    jaw *= 1.0 - _smoothstep(JAW_BORDER_TAPER[0], JAW_BORDER_TAPER[1], below)
+    jaw *= 1.0 - smoothstep(JAW_BORDER_TAPER[0], JAW_BORDER_TAPER[1], below)
     # the skin over the ramus and the masseter is anchored at the ear and stretches over the moving
     # mandible: the weight falls from the mouth corners toward the ear, as a power of the depth fraction
     tragion = head.landmark_positions(["tragion_L"])[0]
@@ -382,7 +377,7 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     # weights are smoothed over the surface, so the skin there stretches evenly instead of folding
     corners = head.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
     to_corner = np.linalg.norm(v[:, None] - corners[None], axis=2).min(axis=1)
-    near = 1.0 - _smoothstep(0.0, MODIOLUS_RADIUS, to_corner)  # 1 at a corner, 0 beyond the modiolus
+    near = 1.0 - smoothstep(0.0, MODIOLUS_RADIUS, to_corner)  # 1 at a corner, 0 beyond the modiolus
     lower, upper = head.regions["lower_lip"], head.regions["upper_lip"]
     jaw[lower] = 1.0
     jaw[upper] = 0.0
@@ -423,7 +418,7 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
         up, down = np.sin(t) > 1e-9, np.sin(t) < -1e-9
         for k, u in enumerate(rings.u):
             ids = rings.index[k]
-            w = (1.0 - _smoothstep(LID_RIGID_U, LID_FREE_U, np.array(max(u, 0.0)))) * share
+            w = (1.0 - smoothstep(LID_RIGID_U, LID_FREE_U, np.array(max(u, 0.0)))) * share
             W[ids[up], BONES.index(f"eyelid_upper_{side}")] = w[up]
             W[ids[down], BONES.index(f"eyelid_lower_{side}")] = w[down]
         eye = np.unique(head.mesh.faces[parts[f"eye_{side}"]])
