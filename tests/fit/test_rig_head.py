@@ -438,7 +438,7 @@ def test_ict_mouth_opens_without_tearing_at_the_corners_or_dragging_the_gums(
     """ICT's lips curl into a deeper commissure than the reference's, and its gums and tongue are one
     piece: with weights interpolated as they come, the skin beside the corners tore into vertical
     walls (edges stretched 8.6× at the 99th percentile) and the upper gums hung into a grille (8.6×).
-    The corner smoothing and the nearer-tooth-row rule keep both to a slope."""
+    Smoothing the jaw weight's jumps and the nearer-tooth-row rule keep both to a slope."""
     mesh, _, meta = ict
     rig = ict_rigged.rig
     engine = make_engine(rig, "wire")

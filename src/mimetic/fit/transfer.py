@@ -8,10 +8,12 @@ wire-set membership (kept where the interpolated indicator is ≥ 0.5, and each 
 lip only). Surface points (landmarks, muscle ends, wire control points) move the other way: each
 becomes the closest point of the user's deformable surface. Separate user parts that land on the
 reference's eyeballs or teeth become rigid: an eyeball follows its eye bone (placed at the centre
-of a sphere fitted to the user's eyeball), lower teeth and tongue the jaw, upper teeth the head.
-The user's vertices, faces and their order are never changed; the rig lives in the user's frame
-turned by the nearest axis-aligned rotation to +Y up, +Z forward (the identity for meshes already
-in that convention), which ``metadata["source_rotation"]`` undoes.
+of a sphere fitted to the user's eyeball), lower teeth and tongue the jaw, upper teeth the head;
+soft mouth parts (gums joined to the tongue) follow their nearer tooth row (``_soft_mouth_jaw``),
+and jumps of the jaw weight across a face are smoothed into slopes (``_smooth_jaw_jumps``). The
+user's vertices, faces and their order are never changed; the rig lives in the user's frame turned
+by the nearest axis-aligned rotation to +Y up, +Z forward (the identity for meshes already in that
+convention), which ``metadata["source_rotation"]`` undoes.
 """
 
 from __future__ import annotations
@@ -42,7 +44,8 @@ RIGID_PARTS = {
 }
 DEFORMABLE_PARTS = ("skin", "mouth", "ear_L", "ear_R")
 MOUTH_PARTS = ("teeth_upper", "teeth_lower", "tongue", "mouth")
-CORNER_SMOOTH_RADIUS = 1.0  # cm (reference frame) around each mouth corner where the jaw weight is smoothed
+JAW_JUMP = 0.5  # jaw weight difference across one face that the jaw would tear open
+JAW_JUMP_RADIUS = 0.8  # cm (reference frame) around such faces where the jaw weight is smoothed
 
 
 def rig_frame(to_model: Similarity) -> Similarity:
@@ -180,29 +183,31 @@ def _soft_mouth_jaw(points: np.ndarray, upper_teeth: np.ndarray, lower_teeth: np
     return smoothstep(0.3, 0.7, d_upper / np.maximum(d_upper + d_lower, 1e-12))
 
 
-def _smooth_mouth_corners(
-    weights: np.ndarray, vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray, radius: float, jaw: int
+def _smooth_jaw_jumps(
+    weights: np.ndarray, vertices: np.ndarray, faces: np.ndarray, radius: float, jaw: int
 ) -> np.ndarray:
     """``weights`` (n, bones) with the jaw weight (column ``jaw``) smoothed over ``faces`` within
-    ``radius`` of the ``corners`` (2, 3), the head bone (column 0) taking the rest.
+    ``radius`` of every face across which it jumps by more than ``JAW_JUMP``, the head bone
+    (column 0) taking the rest.
 
-    The reference's lips meet at its corners, a user's lips often curl into a deeper commissure:
-    there the interpolated weights can jump from the upper lip's 0 to the lower lip's 1 across one
-    row of faces, which tears open with the jaw. Neighbour averaging, as many times as it takes to
-    spread over half the radius at the mesh's edge length there, makes the jump a slope, as the
-    recipe does around the reference's corners; the smoothed weight fades back into the
-    interpolated one over the outer half of the radius.
+    The reference's lips meet at its mouth corners; a scan's lips often run on into a commissure
+    fold, and its skin there takes the upper lip's 0 on one side and the lower lip's 1 on the other,
+    across a single row of faces that the jaw then tears open into a wall. (Where the lips really
+    part, no face spans the opening.) Neighbour averaging, as many times as it takes to spread over
+    half the radius at the mesh's edge length there, turns each jump into a slope; the smoothed
+    weight fades back into the interpolated one over the outer half of the radius.
     """
-    distance = np.linalg.norm(vertices[:, None] - corners[None], axis=2).min(axis=1)  # (n,)
-    local = faces[(distance < radius)[faces].all(axis=1)]
-    if len(local) == 0:
+    value = weights[:, jaw].copy()
+    jumps = faces[np.ptp(value[faces], axis=1) > JAW_JUMP]
+    if len(jumps) == 0:
         return weights
+    distance, _ = cKDTree(vertices[np.unique(jumps)]).query(vertices, distance_upper_bound=radius)
+    local = faces[(distance < radius)[faces].all(axis=1)]
     edges = edges_unique(local)
     edge = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1).mean()
     steps = int(np.clip(np.ceil((0.5 * radius / edge) ** 2), 1, 400))
     average = neighbour_mean(local, len(vertices))
     around = np.unique(local)
-    value = weights[:, jaw].copy()
     for _ in range(steps):
         value[around] = (average @ value)[around]
     out = weights.copy()
@@ -261,15 +266,9 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
         weights[soft_mouth] = 0.0
         weights[soft_mouth, reference.bone_index("head")] = 1.0 - jaw
         weights[soft_mouth, reference.bone_index("jaw")] = jaw
-    mouth_corners = to_rig.apply(reference.landmark_positions(["mouth_corner_L", "mouth_corner_R"]))
     soft_faces = user.faces[~in_rigid[user.faces].any(axis=1)]
-    weights = _smooth_mouth_corners(
-        weights,
-        rig_vertices,
-        soft_faces,
-        mouth_corners,
-        CORNER_SMOOTH_RADIUS * to_rig.scale,
-        reference.bone_index("jaw"),
+    weights = _smooth_jaw_jumps(
+        weights, rig_vertices, soft_faces, JAW_JUMP_RADIUS * to_rig.scale, reference.bone_index("jaw")
     )
     weights = sp.csr_matrix(weights)
 
