@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from mimetic.engines import make_engine
+from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.errors import LandmarkError, MeshError, MimeticWarning
 from mimetic.fit.landmarks import MEDIAPIPE_LANDMARKS, Landmarks
 from mimetic.fit.pipeline import MAX_VERTICES, RigResult, rig_head
@@ -430,6 +431,13 @@ def test_ict_eyelashes_close_with_the_lid(ict, ict_rigged: RigResult) -> None:
     upper = lashes["left"][rest[lashes["left"], 1] > eye.head[1]]
     assert np.median(closed[upper, 1] - rest[upper, 1]) < -0.3 * radius  # the upper lashes came down
     np.testing.assert_array_equal(closed[lashes["right"]], rest[lashes["right"]])
+    # their skin weights are their rivets': a skinned export (glTF, USD) swings them in one piece too
+    values = np.array([channel.maximum if c is channel else c.default for c in rig.channels])
+    skinned = linear_blend_skinning(mesh.vertices, rig.skin_weights, bone_transforms(rig, values))
+    lbs = np.linalg.norm(skinned[edges[:, 0]] - skinned[edges[:, 1]], axis=1) / np.linalg.norm(
+        mesh.vertices[edges[:, 0]] - mesh.vertices[edges[:, 1]], axis=1
+    )
+    assert np.percentile(lbs, 99) < 1.5 and lbs.max() < 2.5
 
 
 def test_ict_mouth_opens_without_tearing_at_the_corners_or_dragging_the_gums(

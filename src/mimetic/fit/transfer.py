@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from mimetic.engines.attach import find_attachments
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
@@ -270,7 +271,6 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     weights = _smooth_jaw_jumps(
         weights, rig_vertices, soft_faces, JAW_JUMP_RADIUS * to_rig.scale, reference.bone_index("jaw")
     )
-    weights = sp.csr_matrix(weights)
 
     # regions and wire sets: membership by interpolated indicator
     def members(ref_ids: np.ndarray) -> np.ndarray:
@@ -301,6 +301,12 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     user_rig_mesh = Mesh(
         rig_vertices, user.faces, parts=dict(sorted(parts.items())), colors=user.colors, units=user.units
     )
+    # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
+    # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
+    scale = reference.scale * to_rig.scale
+    riding = find_attachments(user_rig_mesh, scale, sp.csr_matrix(weights))
+    weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
+    weights = sp.csr_matrix(weights)
 
     # surface points: closest point on the user's deformable surface
     skin_faces = parts["skin"]
@@ -350,7 +356,7 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     return Rig(
         mesh=user_rig_mesh,
         units=user.units,
-        scale=reference.scale * to_rig.scale,
+        scale=scale,
         landmarks=landmarks,
         regions=regions,
         muscles=tuple(muscles),
