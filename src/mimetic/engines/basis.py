@@ -14,7 +14,7 @@ Compact layouts
 Both layouts keep the caller's vertex order. Reordering vertices would make supports contiguous,
 but putting a 13k-vertex result back in order costs 10-50 µs here, as much as a whole frame (and
 on the generated head a reordering found by a nearest-neighbour tour of the support signatures
-did not even cut the number of ranges), so the sparsity is taken in mesh order.
+did not even cut the number of contiguous support ranges), so the sparsity is taken in mesh order.
 
 * **runs**, for one frame: each term's non-zero components as runs in mesh order, zero gaps of at
   most ``RUN_GAP_ELEMENTS`` elements included, their values packed in one array. One call of a
