@@ -66,13 +66,13 @@ from mimetic.head.shape import skin_geometry
 from mimetic.head.topology import build_topology
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh
+from mimetic.shared_data import ict_landmarks, load_ict
 from mimetic.testing import shared_data_dir
 
 GOAL_RIG_S = 20.0
 GOAL_SPEEDUP = 5.0
 GOAL_MEDIAN_RESIDUAL = 0.35
 ICT_FACE = slice(0, 9409)  # ICT's "Face" part, vertices 0..9408 (inclusive range in meta.json)
-ICT_SKIP_IBUG = (60, 64)  # inner mouth corners: the same project landmarks as 48 / 54
 FRONT_COS = 0.3  # skin directions with z above this are "the face"
 UNREACHED_SHARE = 0.25  # a vertex is unreached when the fit moves it less than this share of the target
 SOLVE_ITERATIONS = 30
@@ -142,19 +142,6 @@ def timed(fn, repeats: int) -> tuple[float, object]:
 
 
 # --------------------------------------------------------------------------- ICT cases
-
-
-def load_ict(root: Path) -> tuple[Mesh, Landmarks, dict]:
-    """The ICT neutral (cm) with its iBUG landmarks (no jaw contour, no inner mouth corners); meta.json."""
-    folder = root / "ict-facekit"
-    neutral = np.load(folder / "neutral.npz")
-    meta = json.loads((folder / "meta.json").read_text())
-    mesh = Mesh(neutral["vertices"].astype(np.float64), neutral["faces"].astype(np.int64), units="cm")
-    ids = np.asarray(meta["landmarks_68"]["vertex_indices"])
-    use = [i for i in range(17, 68) if i not in ICT_SKIP_IBUG]
-    names = tuple(IBUG68[i] for i in use)
-    landmarks = Landmarks(names, mesh.vertices[ids[use]], np.ones(len(use)), "cm", "ict-facekit iBUG 68")
-    return mesh, landmarks, meta
 
 
 def residual_pct(fit, skin: np.ndarray, select: np.ndarray) -> tuple[float, float, float]:
@@ -598,7 +585,8 @@ def main() -> None:
     if root is None or not (root / "ict-facekit").is_dir():
         print("shared data not found (mimetic.testing.shared_data_dir()): tables a-c skipped")
     else:
-        mesh, landmarks, _ = load_ict(root)
+        mesh, meta = load_ict(root / "ict-facekit")
+        landmarks = ict_landmarks(mesh, meta)
         result = bench_rig_head(mesh, landmarks, repeats)
         bench_nricp(mesh, landmarks, result, repeats, args.quick)
         bench_fidelity(mesh, result, root, args.quick)

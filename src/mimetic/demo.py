@@ -22,7 +22,6 @@ rig, its fit report (JSON and a residual picture) and an expression sheet on ICT
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,7 +38,7 @@ from mimetic.mesh.model import Mesh
 from mimetic.rig.format import save_rig
 from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
-from mimetic.shared_data import shared_data_dir
+from mimetic.shared_data import ict_landmarks, load_ict, shared_data_dir
 from mimetic.view.muscles import render_rig
 from mimetic.view.render import Renderer
 from mimetic.view.sheet import contact_sheet, save_png
@@ -156,29 +155,20 @@ def _without_ict_shells(mesh: Mesh, meta: dict) -> Mesh:
 
 def _ict(folder: Path, renderer: Renderer) -> tuple[list[Path], list[str]]:
     """Rig the ICT-FaceKit neutral head automatically and pose it (when the shared data is present)."""
-    from mimetic.fit.landmarks import Landmarks, auto_landmarks, write_landmarks
+    from mimetic.fit.landmarks import auto_landmarks, write_landmarks
     from mimetic.fit.pipeline import rig_head
-    from mimetic.head.landmarks import IBUG68
     from mimetic.view.fitreport import fit_report_image
 
     data = shared_data_dir()
     if data is None or not (data / "ict-facekit" / "neutral.npz").is_file():
         return [], ["ICT-FaceKit head skipped: no shared data (set MIMETIC_SHARED_DATA to its data folder)"]
-    ict = np.load(data / "ict-facekit" / "neutral.npz")
-    meta = json.loads((data / "ict-facekit" / "meta.json").read_text())
-    mesh = _without_ict_shells(
-        Mesh(ict["vertices"].astype(np.float64), ict["faces"].astype(np.int64), units="cm"), meta
-    )
+    mesh, meta = load_ict(data / "ict-facekit")
+    mesh = _without_ict_shells(mesh, meta)
     notes = []
     try:
         landmarks = auto_landmarks(mesh, renderer=renderer)
     except MissingExtraError as error:
-        ids = np.array(meta["landmarks_68"]["vertex_indices"])
-        use = [i for i in range(17, 68) if i not in (60, 64)]
-        names = tuple(IBUG68[i] for i in use)
-        landmarks = Landmarks(
-            names, mesh.vertices[ids[use]], np.ones(len(use)), "cm", "ict-facekit landmarks_68"
-        )
+        landmarks = ict_landmarks(mesh, meta)
         notes.append(f"ICT-FaceKit head rigged from its own landmark vertices ({error})")
     folder.mkdir(parents=True, exist_ok=True)
     result = rig_head(mesh, landmarks, metadata={"source": "ict-facekit/neutral.npz"})

@@ -357,17 +357,11 @@ def test_prepare_arkit_fit_checks_its_shapes(shapes):
 @pytest.fixture(scope="module")
 def ict():
     folder = require_shared_data("ict-facekit")
-    from mimetic.fit.landmarks import Landmarks
     from mimetic.fit.pipeline import rig_head
-    from mimetic.head.landmarks import IBUG68
-    from mimetic.mesh.model import Mesh
+    from mimetic.shared_data import ict_landmarks, load_ict
 
-    data = np.load(folder / "neutral.npz")
-    meta = json.loads((folder / "meta.json").read_text())
-    mesh = Mesh(data["vertices"].astype(np.float64), data["faces"].astype(np.int64), units="cm")
-    ids = np.array(meta["landmarks_68"]["vertex_indices"])
-    use = [i for i in range(17, 68) if i not in (60, 64)]  # as tests/fit/test_rig_head.py
-    marks = Landmarks(tuple(IBUG68[i] for i in use), mesh.vertices[ids[use]], np.ones(len(use)), "cm", "ict")
+    mesh, meta = load_ict(folder)
+    marks = ict_landmarks(mesh, meta)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rig = rig_head(mesh, marks).rig

@@ -8,8 +8,6 @@ faces (ICT-FaceKit, MediaPipe's canonical mesh) come from ../shared/data.
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
@@ -18,12 +16,12 @@ from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.errors import LandmarkError, MeshError, MimeticWarning
 from mimetic.fit.landmarks import MEDIAPIPE_LANDMARKS, Landmarks
 from mimetic.fit.pipeline import MAX_VERTICES, RigResult, rig_head
-from mimetic.head.landmarks import IBUG68
 from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.rig.recipe import build_rig
+from mimetic.shared_data import ict_landmarks, load_ict
 from mimetic.testing import require_shared_data
 
 FIT_NAMES = "no pupils, jaw contour or menton: the points a user would click"
@@ -255,14 +253,8 @@ def test_broken_and_huge_meshes_are_refused(target: Head) -> None:
 
 @pytest.fixture(scope="module")
 def ict() -> tuple[Mesh, Landmarks, dict]:
-    folder = require_shared_data("ict-facekit")
-    data = np.load(folder / "neutral.npz")
-    meta = json.loads((folder / "meta.json").read_text())
-    mesh = Mesh(data["vertices"].astype(np.float64), data["faces"].astype(np.int64), units="cm")
-    ids = np.array(meta["landmarks_68"]["vertex_indices"])
-    use = [i for i in range(17, 68) if i not in (60, 64)]  # no jaw contour; 61/65 repeat the corners
-    marks = Landmarks(tuple(IBUG68[i] for i in use), mesh.vertices[ids[use]], np.ones(len(use)), "cm", "ict")
-    return mesh, marks, meta
+    mesh, meta = load_ict(require_shared_data("ict-facekit"))
+    return mesh, ict_landmarks(mesh, meta), meta
 
 
 @pytest.fixture(scope="module")
