@@ -8,26 +8,20 @@ import zipfile
 import numpy as np
 import pytest
 from PIL import Image
-from typer.testing import CliRunner
 
-from mimetic.cli import app
 from mimetic.head.model import make_head
 from mimetic.mesh.io import load_mesh, save_mesh
 from mimetic.mesh.model import Mesh
 from mimetic.rig.format import load_rig
+from mimetic.testing import run_cli
 
 RES = "2500"
-runner = CliRunner()
-
-
-def run(*args: str):
-    return runner.invoke(app, list(args), catch_exceptions=False)
 
 
 @pytest.fixture(scope="module")
 def rig_file(tmp_path_factory):
     out = tmp_path_factory.mktemp("cli")
-    result = run(
+    result = run_cli(
         "head", "--seed", "3", "--resolution", RES, "-o", str(out / "h.glb"), "--rig", str(out / "h.mrig")
     )
     assert result.exit_code == 0, result.output
@@ -36,7 +30,7 @@ def rig_file(tmp_path_factory):
 
 def test_head_writes_a_mesh_with_the_generated_vertices(tmp_path):
     out = tmp_path / "head.obj"
-    result = run("head", "--resolution", RES, "--param", "nose_length=1.1", "-o", str(out))
+    result = run_cli("head", "--resolution", RES, "--param", "nose_length=1.1", "-o", str(out))
     assert result.exit_code == 0, result.output
     assert str(out) in result.output
     mesh = load_mesh(out)
@@ -55,7 +49,7 @@ def test_head_with_rig_writes_a_loadable_rig(rig_file):
 
 
 def test_info_reports_units_parts_and_landmarks_of_a_rig(rig_file):
-    result = run("info", str(rig_file), "--json")
+    result = run_cli("info", str(rig_file), "--json")
     assert result.exit_code == 0, result.output
     report = json.loads(result.output)
     assert report["kind"] == "rig"
@@ -65,14 +59,14 @@ def test_info_reports_units_parts_and_landmarks_of_a_rig(rig_file):
 
 
 def test_info_on_a_mesh_prints_the_validation_report(rig_file):
-    result = run("info", str(rig_file.with_suffix(".glb")))
+    result = run_cli("info", str(rig_file.with_suffix(".glb")))
     assert result.exit_code == 0, result.output
     assert "cm" in result.output and "boundary loops" in result.output and "eye_L" in result.output
 
 
 def test_render_of_a_rig_writes_a_three_view_sheet(rig_file, tmp_path):
     out = tmp_path / "r.png"
-    result = run("render", str(rig_file), "-o", str(out), "--size", "128")
+    result = run_cli("render", str(rig_file), "-o", str(out), "--size", "128")
     assert result.exit_code == 0, result.output
     image = np.asarray(Image.open(out))
     assert image.shape[1] == 3 * 128 and image.shape[2] == 3
@@ -81,7 +75,7 @@ def test_render_of_a_rig_writes_a_three_view_sheet(rig_file, tmp_path):
 
 def test_render_single_view_of_a_mesh(rig_file, tmp_path):
     out = tmp_path / "front.png"
-    result = run(
+    result = run_cli(
         "render", str(rig_file.with_suffix(".glb")), "--view", "profile", "--size", "96", "-o", str(out)
     )
     assert result.exit_code == 0, result.output
@@ -90,7 +84,7 @@ def test_render_single_view_of_a_mesh(rig_file, tmp_path):
 
 def test_demo_writes_heads_rigs_and_sheets(tmp_path):
     out = tmp_path / "demo"
-    result = run("demo", "-o", str(out), "--resolution", RES)
+    result = run_cli("demo", "-o", str(out), "--resolution", RES)
     assert result.exit_code == 0, result.output
     for name in ("head.glb", "default.mrig", "default_views.png", "heads_muscles.png"):
         assert (out / name).stat().st_size > 1000, name
@@ -116,19 +110,19 @@ def _fails_with(result, *words: str) -> None:
 def test_info_rejects_a_file_that_is_not_a_mesh(tmp_path):
     bad = tmp_path / "notes.obj"
     bad.write_text("hello world\n")
-    _fails_with(run("info", str(bad)), "notes.obj", "not a wavefront obj")
+    _fails_with(run_cli("info", str(bad)), "notes.obj", "not a wavefront obj")
 
 
 def test_info_rejects_an_empty_mesh(tmp_path):
     empty = tmp_path / "empty.obj"
     empty.write_text("")
-    _fails_with(run("info", str(empty)), "empty")
+    _fails_with(run_cli("info", str(empty)), "empty")
 
 
 def test_info_reports_nan_coordinates(tmp_path):
     path = tmp_path / "nan.obj"
     path.write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n")
-    _fails_with(run("info", str(path)), "nan")
+    _fails_with(run_cli("info", str(path)), "nan")
 
 
 def test_render_rejects_a_two_triangle_mesh_and_keeps_the_old_png(tmp_path):
@@ -136,7 +130,7 @@ def test_render_rejects_a_two_triangle_mesh_and_keeps_the_old_png(tmp_path):
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
     old = tmp_path / "out.png"
     old.write_bytes(b"precious")
-    _fails_with(run("render", str(path), "-o", str(old)), "2 faces")
+    _fails_with(run_cli("render", str(path), "-o", str(old)), "2 faces")
     assert old.read_bytes() == b"precious"
 
 
@@ -144,7 +138,7 @@ def test_info_detects_millimetres(tmp_path):
     head = make_head(resolution=2500)
     mm = Mesh(head.mesh.vertices * 10.0, head.mesh.faces)
     path = save_mesh(mm, tmp_path / "mm.ply")
-    result = run("info", str(path), "--json")
+    result = run_cli("info", str(path), "--json")
     assert result.exit_code == 0, result.output
     assert json.loads(result.output)["detected_units"] == "mm"
 
@@ -152,7 +146,7 @@ def test_info_detects_millimetres(tmp_path):
 def test_info_rejects_a_truncated_rig(rig_file, tmp_path):
     cut = tmp_path / "cut.mrig"
     cut.write_bytes(rig_file.read_bytes()[: rig_file.stat().st_size // 2])
-    _fails_with(run("info", str(cut)), "truncated")
+    _fails_with(run_cli("info", str(cut)), "truncated")
 
 
 def test_info_rejects_a_rig_from_a_newer_format_version(rig_file, tmp_path):
@@ -165,19 +159,23 @@ def test_info_rejects_a_rig_from_a_newer_format_version(rig_file, tmp_path):
                 manifest["version"] = 99
                 data = json.dumps(manifest).encode()
             dst.writestr(item, data)
-    _fails_with(run("info", str(newer)), "version 99", "upgrade")
+    _fails_with(run_cli("info", str(newer)), "version 99", "upgrade")
 
 
 def test_head_rejects_unknown_parameter_and_keeps_existing_file(tmp_path):
     out = tmp_path / "head.glb"
     out.write_bytes(b"old")
-    _fails_with(run("head", "--param", "nose=1.1", "-o", str(out)), "unknown head parameter", "nose_length")
+    _fails_with(
+        run_cli("head", "--param", "nose=1.1", "-o", str(out)), "unknown head parameter", "nose_length"
+    )
     assert out.read_bytes() == b"old"
 
 
 def test_head_rejects_out_of_range_parameter(tmp_path):
-    _fails_with(run("head", "--param", "jaw_width=3", "-o", str(tmp_path / "h.glb")), "jaw_width", "range")
+    _fails_with(
+        run_cli("head", "--param", "jaw_width=3", "-o", str(tmp_path / "h.glb")), "jaw_width", "range"
+    )
 
 
 def test_render_rejects_unknown_view(rig_file, tmp_path):
-    _fails_with(run("render", str(rig_file), "--view", "top", "-o", str(tmp_path / "x.png")), "top")
+    _fails_with(run_cli("render", str(rig_file), "--view", "top", "-o", str(tmp_path / "x.png")), "top")

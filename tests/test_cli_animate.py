@@ -5,18 +5,10 @@ from __future__ import annotations
 import imageio_ffmpeg
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from mimetic.animate.clip import load_clip
-from mimetic.cli import app
 from mimetic.rig.format import save_rig
-from mimetic.testing import small_rig
-
-runner = CliRunner()
-
-
-def run(*args):
-    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+from mimetic.testing import run_cli, small_rig
 
 
 @pytest.fixture(scope="module")
@@ -24,8 +16,8 @@ def files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("animate")
     rig_file = save_rig(small_rig(), folder / "small.mrig")
     clip_file = folder / "clip.json"
-    result = run("clip", "new", rig_file, "--pose", "0:rest", "--pose", "0.5:joy", "--pose",
-                 "1:surprise=0.8+joy=0.2", "--pose", "1.5:rest", "-o", clip_file)  # fmt: skip
+    result = run_cli("clip", "new", rig_file, "--pose", "0:rest", "--pose", "0.5:joy", "--pose",
+                     "1:surprise=0.8+joy=0.2", "--pose", "1.5:rest", "-o", clip_file)  # fmt: skip
     assert result.exit_code == 0, result.output
     return rig_file, clip_file, folder
 
@@ -45,8 +37,8 @@ def test_clip_new_keys_the_expressions(files):
 def test_clip_edit_passes_through_the_new_keys_in_its_own_layer(files):
     _, clip_file, folder = files
     out = folder / "edited.json"
-    result = run("clip", "edit", clip_file, "--key", "jaw_open@0.75=0.3", "--key", "jaw_open@1.0=0.1",
-                 "--knot-spacing", "0.1", "-o", out)  # fmt: skip
+    result = run_cli("clip", "edit", clip_file, "--key", "jaw_open@0.75=0.3", "--key", "jaw_open@1.0=0.1",
+                     "--knot-spacing", "0.1", "-o", out)  # fmt: skip
     assert result.exit_code == 0, result.output
     before, after = load_clip(clip_file), load_clip(out)
     j = after.channels.index("jaw_open")
@@ -59,7 +51,7 @@ def test_clip_edit_passes_through_the_new_keys_in_its_own_layer(files):
 def test_animate_renders_an_mp4(files):
     rig_file, clip_file, folder = files
     out = folder / "anim.mp4"
-    result = run("animate", rig_file, "--clip", clip_file, "--fps", "20", "--size", "96", "-o", out)
+    result = run_cli("animate", rig_file, "--clip", clip_file, "--fps", "20", "--size", "96", "-o", out)
     assert result.exit_code == 0, result.output
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(out))
     assert frames == 31 and seconds == pytest.approx(1.55, abs=0.05)
@@ -79,7 +71,7 @@ def test_bad_input_is_one_line_and_writes_nothing(files, args, message):
     rig_file, clip_file, folder = files
     out = folder / "never.json"
     swap = {"CLIP": clip_file, "RIG": rig_file, "OUT": out, "OUT.avi": folder / "never.avi"}
-    result = run(*[swap.get(a, a) for a in args])
+    result = run_cli(*[swap.get(a, a) for a in args])
     assert result.exit_code == 1 and message in result.output
     assert not out.exists() and not (folder / "never.avi").exists()
 
@@ -89,7 +81,7 @@ def test_animate_exports_an_animated_glb(files):
 
     rig_file, clip_file, folder = files
     out = folder / "anim.glb"
-    result = run("animate", rig_file, "--clip", clip_file, "--fps", "24", "-o", out)
+    result = run_cli("animate", rig_file, "--clip", clip_file, "--fps", "24", "-o", out)
     assert result.exit_code == 0, result.output
     summary = read_glb_summary(out)
     rig = small_rig()
@@ -107,7 +99,7 @@ def test_export_arkit_writes_52_named_targets_and_objs(files):
 
     rig_file, _, folder = files
     out, objs = folder / "arkit.glb", folder / "arkit_objs"
-    result = run("export", rig_file, "--arkit", "--obj-dir", objs, "-o", out)
+    result = run_cli("export", rig_file, "--arkit", "--obj-dir", objs, "-o", out)
     assert result.exit_code == 0, result.output
     assert list(read_glb_summary(out)["target_names"]) == list(ARKIT_NAMES)
     assert sorted(p.stem for p in objs.glob("*.obj")) == sorted(ARKIT_NAMES)
@@ -122,8 +114,8 @@ def test_export_and_animate_write_clean_usd(files, usd_ready):
 
     rig_file, clip_file, folder = files
     shapes, anim = folder / "arkit.usda", folder / "anim.usdc"
-    assert run("export", rig_file, "--arkit", "-o", shapes).exit_code == 0
-    assert run("animate", rig_file, "--clip", clip_file, "-o", anim).exit_code == 0
+    assert run_cli("export", rig_file, "--arkit", "-o", shapes).exit_code == 0
+    assert run_cli("animate", rig_file, "--clip", clip_file, "-o", anim).exit_code == 0
     from pxr import Usd, UsdSkel
 
     assert check_usd(shapes) == [] and check_usd(anim) == []

@@ -7,18 +7,10 @@ import json
 import numpy as np
 import pytest
 from PIL import Image
-from typer.testing import CliRunner
 
-from mimetic.cli import app
 from mimetic.mesh.io import load_mesh
 from mimetic.rig.format import save_rig
-from mimetic.testing import small_rig
-
-runner = CliRunner()
-
-
-def run(*args: str):
-    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+from mimetic.testing import run_cli, small_rig
 
 
 @pytest.fixture(scope="module")
@@ -28,8 +20,8 @@ def rig_file(tmp_path_factory):
 
 def test_pose_writes_a_png_render(rig_file, tmp_path):
     out = tmp_path / "joy.png"
-    result = run("pose", rig_file, "--expr", "joy=0.8", "--expr", "surprise", "--set", "jaw_open=0.1",
-                 "--size", "96", "-o", out)  # fmt: skip
+    result = run_cli("pose", rig_file, "--expr", "joy=0.8", "--expr", "surprise", "--set", "jaw_open=0.1",
+                     "--size", "96", "-o", out)  # fmt: skip
     assert result.exit_code == 0, result.output
     assert str(out) in result.output
     image = np.asarray(Image.open(out))
@@ -38,7 +30,7 @@ def test_pose_writes_a_png_render(rig_file, tmp_path):
 
 def test_pose_view_all_writes_a_three_view_sheet(rig_file, tmp_path):
     out = tmp_path / "all.png"
-    result = run("pose", rig_file, "--expr", "quizzical", "--view", "all", "--size", "64", "-o", out)
+    result = run_cli("pose", rig_file, "--expr", "quizzical", "--view", "all", "--size", "64", "-o", out)
     assert result.exit_code == 0, result.output
     width, height = Image.open(out).size
     assert width == 3 * 64 and height > 64
@@ -51,7 +43,7 @@ def test_pose_writes_the_posed_mesh_in_rig_vertex_order(rig_file, tmp_path, engi
 
     rig = small_rig()
     out = tmp_path / f"joy_{engine}.obj"
-    result = run("pose", rig_file, "--expr", "joy", "--engine", engine, "-o", out)
+    result = run_cli("pose", rig_file, "--expr", "joy", "--engine", engine, "-o", out)
     assert result.exit_code == 0, result.output
     mesh = load_mesh(out)
     assert mesh.vertices.shape == (rig.n_vertices, 3)
@@ -64,7 +56,7 @@ def test_pose_reads_a_user_library(rig_file, tmp_path):
     library = tmp_path / "mine.json"
     library.write_text(json.dumps({"expressions": {"smirk": {"values": {"zygomatic_major_L": 0.9}}}}))
     out = tmp_path / "smirk.ply"
-    result = run("pose", rig_file, "--library", library, "--expr", "smirk", "-o", out)
+    result = run_cli("pose", rig_file, "--library", library, "--expr", "smirk", "-o", out)
     assert result.exit_code == 0, result.output
     assert load_mesh(out).vertices.shape == (small_rig().n_vertices, 3)
 
@@ -85,7 +77,7 @@ def test_pose_reads_a_user_library(rig_file, tmp_path):
 )
 def test_pose_bad_input_exits_1_with_one_line_naming_the_problem(rig_file, tmp_path, args, word):
     out = tmp_path / "out.png"
-    result = run("pose", rig_file, *args, "-o", out)
+    result = run_cli("pose", rig_file, *args, "-o", out)
     assert result.exit_code == 1
     lines = result.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:"), result.output
@@ -94,19 +86,19 @@ def test_pose_bad_input_exits_1_with_one_line_naming_the_problem(rig_file, tmp_p
 
 
 def test_pose_missing_rig_file_exits_1(tmp_path):
-    result = run("pose", tmp_path / "nope.mrig", "-o", tmp_path / "out.png")
+    result = run_cli("pose", tmp_path / "nope.mrig", "-o", tmp_path / "out.png")
     assert result.exit_code == 1
     assert "nope.mrig" in result.output and "Traceback" not in result.output
 
 
 def test_pose_unsupported_output_exits_1(rig_file, tmp_path):
-    result = run("pose", rig_file, "-o", tmp_path / "out.txt")
+    result = run_cli("pose", rig_file, "-o", tmp_path / "out.txt")
     assert result.exit_code == 1 and "unsupported output" in result.output
 
 
 def test_pose_error_leaves_an_existing_output_alone(rig_file, tmp_path):
     out = tmp_path / "keep.obj"
     out.write_text("precious")
-    result = run("pose", rig_file, "--set", "jaw_open=9", "-o", out)
+    result = run_cli("pose", rig_file, "--set", "jaw_open=9", "-o", out)
     assert result.exit_code == 1
     assert out.read_text() == "precious"

@@ -7,19 +7,12 @@ import json
 import numpy as np
 import pytest
 from PIL import Image
-from typer.testing import CliRunner
 
-from mimetic.cli import app
 from mimetic.head.model import make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.io import save_mesh
 from mimetic.rig.format import load_rig
-
-runner = CliRunner()
-
-
-def run(*args):
-    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+from mimetic.testing import run_cli
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +37,7 @@ def head_files(tmp_path_factory):
 def test_rig_writes_rig_report_and_picture(head_files):
     head, mesh_file, lm_file, folder = head_files
     out = folder / "head.mrig"
-    result = run("rig", mesh_file, "--landmarks", lm_file, "-o", out)
+    result = run_cli("rig", mesh_file, "--landmarks", lm_file, "-o", out)
     assert result.exit_code == 0, result.output
     assert "accepted" in result.output
     rig = load_rig(out)
@@ -56,14 +49,14 @@ def test_rig_writes_rig_report_and_picture(head_files):
     assert image.ndim == 3 and image.std() > 10
     # every other command takes the rig
     posed = folder / "joy.png"
-    assert run("pose", out, "--expr", "joy", "--size", "64", "-o", posed).exit_code == 0
-    info = run("info", out, "--json")
+    assert run_cli("pose", out, "--expr", "joy", "--size", "64", "-o", posed).exit_code == 0
+    info = run_cli("info", out, "--json")
     assert info.exit_code == 0 and '"kind": "rig"' in info.output
 
 
 def test_rig_refuses_both_landmark_sources(head_files, tmp_path):
     _, mesh_file, lm_file, _ = head_files
-    result = run("rig", mesh_file, "--landmarks", lm_file, "--auto-landmarks", "-o", tmp_path / "x.mrig")
+    result = run_cli("rig", mesh_file, "--landmarks", lm_file, "--auto-landmarks", "-o", tmp_path / "x.mrig")
     assert result.exit_code == 1 and "not both" in result.output
     assert not (tmp_path / "x.mrig").exists()
 
@@ -79,7 +72,7 @@ def test_rig_refuses_a_box_and_writes_nothing(tmp_path, head_files):
     box.export(mesh_file)
     out = tmp_path / "box.mrig"
     out.write_bytes(b"a good old file")
-    result = run("rig", mesh_file, "--units", "mm", "--landmarks", lm_file, "-o", out)
+    result = run_cli("rig", mesh_file, "--units", "mm", "--landmarks", lm_file, "-o", out)
     assert result.exit_code == 1 and "does not look like a head" in result.output
     assert out.read_bytes() == b"a good old file"
 
@@ -88,5 +81,5 @@ def test_rig_names_a_bad_landmark_file(head_files, tmp_path):
     _, mesh_file, _, _ = head_files
     bad = tmp_path / "lm.json"
     bad.write_text('{"units": "cm", "landmarks": {"nose_tip": [0, 0, 1]}}')
-    result = run("rig", mesh_file, "--landmarks", bad, "-o", tmp_path / "x.mrig")
+    result = run_cli("rig", mesh_file, "--landmarks", bad, "-o", tmp_path / "x.mrig")
     assert result.exit_code == 1 and "at least 8" in result.output

@@ -151,3 +151,13 @@ def require_shared_data(relative: str = "") -> Path:
             pytest.fail(f"{reason}; CI=true requires it")
         pytest.skip(reason)
     return path
+
+
+def run_cli(*args: object):
+    """``mimetic`` on the command line, in this process: each argument passed as ``str``; returns
+    typer's ``Result`` (``exit_code``, ``output``) and lets exceptions through."""
+    from typer.testing import CliRunner
+
+    from mimetic.cli import app
+
+    return CliRunner().invoke(app, [str(a) for a in args], catch_exceptions=False)
