@@ -23,9 +23,9 @@ from mimetic.engines.bake import bake
 from mimetic.export.gltf import export_glb, morph_targets_from_basis
 from mimetic.export.obj_sequence import export_obj_sequence
 from mimetic.head.model import make_head
+from mimetic.render.renderer import Renderer
 from mimetic.rig.activations import Clip
 from mimetic.rig.recipe import build_rig
-from mimetic.view.render import Renderer
 from mimetic.view.video import render_clip
 
 GLB_GOAL_S = 2.0  # a 10 s, 60 fps clip

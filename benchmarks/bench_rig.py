@@ -66,8 +66,7 @@ from mimetic.head.shape import skin_geometry
 from mimetic.head.topology import build_topology
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh
-from mimetic.shared_data import ict_landmarks, load_ict
-from mimetic.testing import shared_data_dir
+from mimetic.testing import ict_landmarks, load_ict, shared_data_dir
 
 GOAL_RIG_S = 20.0
 GOAL_SPEEDUP = 5.0
@@ -176,7 +175,7 @@ def bench_rig_head(mesh: Mesh, landmarks: Landmarks, repeats: int):
         )
     )
     try:
-        from mimetic.fit.landmarks import auto_landmarks
+        from mimetic.fit.autolandmarks import auto_landmarks
 
         start = time.perf_counter()
         auto = auto_landmarks(mesh)

@@ -278,7 +278,7 @@ def rig_command(
     resolution: int = typer.Option(10_000, "--resolution", help="Skin vertex count of the reference head."),
 ) -> None:
     """Fit the reference head to a mesh and write a muscle rig on the mesh's own vertices."""
-    from mimetic.fit.landmarks import auto_landmarks as find_landmarks
+    from mimetic.fit.autolandmarks import auto_landmarks as find_landmarks
     from mimetic.fit.landmarks import read_landmarks
     from mimetic.fit.pipeline import rig_head
     from mimetic.mesh.io import load_mesh
@@ -568,7 +568,7 @@ def export_command(
         loaded = load_rig(rig)
         with _progress("bake") as progress:
             if arkit:
-                from mimetic.animate.arkit import arkit_shapes
+                from mimetic.export.arkit import arkit_shapes
 
                 progress(0, 1)
                 targets = arkit_shapes(loaded, engine=engine)

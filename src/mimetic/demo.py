@@ -14,10 +14,8 @@ It also animates the default head: an expression sequence as a keyframed clip
 skeleton (``animation.glb``), the same clip rendered to ``animation.mp4``, and the ARKit-52
 blendshapes baked from the muscle rig as a GLB (``head_arkit.glb``).
 
-When the shared real data is present (``../shared/data`` beside the repository, or
-``$MIMETIC_SHARED_DATA``), it also rigs the ICT-FaceKit neutral head automatically (MediaPipe
-landmarks, or ICT's own 68 landmark vertices without the ``[track]`` extra) into ``ict/``: the
-rig, its fit report (JSON and a residual picture) and an expression sheet on ICT's own mesh.
+Real scanned heads (ICT-FaceKit, from the shared test data) are rigged by ``examples/real_heads.py``,
+which ``make demo`` runs after this job; the library itself knows no particular head.
 """
 
 from __future__ import annotations
@@ -26,21 +24,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from mimetic.animate.expressions import expression_pose, load_library
 from mimetic.engines import Engine, make_engine
-from mimetic.errors import MissingExtraError
 from mimetic.head.model import DEFAULT_RESOLUTION, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.io import save_mesh
-from mimetic.mesh.model import Mesh
+from mimetic.render.renderer import Renderer
 from mimetic.rig.format import save_rig
 from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
-from mimetic.shared_data import ict_landmarks, load_ict, shared_data_dir
 from mimetic.view.muscles import render_rig
-from mimetic.view.render import Renderer
 from mimetic.view.sheet import contact_sheet, save_png
 from mimetic.view.sheets import expression_sheet, muscle_sheet, render_pose
 
@@ -104,11 +97,9 @@ def run_demo(
         progress(total - 1, total)
     files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer)
     files += _animation(default_rig, engines["wire"], out, renderer)
-    ict_files, notes = _ict(out / "ict", renderer)
-    files += ict_files
     if progress:
         progress(total, total)
-    return DemoResult(out, tuple(files), tuple(notes))
+    return DemoResult(out, tuple(files))
 
 
 ANIMATION = ((0.0, "rest"), (1.0, "joy"), (2.0, "surprise"), (3.0, "anger"), (4.0, "sadness"), (5.0, "rest"))
@@ -117,9 +108,9 @@ ANIMATION_FPS = 30
 
 def _animation(rig: Rig, engine: Engine, out: Path, renderer: Renderer) -> list[Path]:
     """An expression sequence as a clip, an animated GLB, an MP4; and the ARKit-52 GLB."""
-    from mimetic.animate.arkit import arkit_shapes
     from mimetic.animate.clip import from_expressions, save_clip
     from mimetic.engines.bake import bake
+    from mimetic.export.arkit import arkit_shapes
     from mimetic.export.gltf import export_glb, morph_targets_from_basis
     from mimetic.view.video import render_clip
 
@@ -132,55 +123,6 @@ def _animation(rig: Rig, engine: Engine, out: Path, renderer: Renderer) -> list[
         render_clip(rig, clip, out / "animation.mp4", basis=basis, size=512, renderer=renderer),
         export_glb(rig, out / "head_arkit.glb", morph_targets=arkit_shapes(engine)),
     ]
-
-
-ICT_SHELLS = ("Lacrimal fluid", "Eye blend", "Eye occlusion")
-
-
-def _without_ict_shells(mesh: Mesh, meta: dict) -> Mesh:
-    """ICT's head without its transparent eye shells (lacrimal fluid, eye blend, eye occlusion),
-    which render as dark caps over the eyes without a transparency pass. They come after the
-    eyeballs, so the vertices before them keep their indices (the 68 landmarks among them)."""
-    drop = np.zeros(mesh.n_vertices, dtype=bool)
-    for part in meta["parts"]:
-        if part["name"].startswith(ICT_SHELLS):
-            first, last = part["vertex_range"]
-            drop[first : last + 1] = True
-    keep = np.nonzero(~drop)[0]
-    remap = np.full(mesh.n_vertices, -1)
-    remap[keep] = np.arange(len(keep))
-    faces = mesh.faces[~drop[mesh.faces].any(axis=1)]
-    return Mesh(mesh.vertices[keep], remap[faces], units=mesh.units)
-
-
-def _ict(folder: Path, renderer: Renderer) -> tuple[list[Path], list[str]]:
-    """Rig the ICT-FaceKit neutral head automatically and pose it (when the shared data is present)."""
-    from mimetic.fit.landmarks import auto_landmarks, write_landmarks
-    from mimetic.fit.pipeline import rig_head
-    from mimetic.view.fitreport import fit_report_image
-
-    data = shared_data_dir()
-    if data is None or not (data / "ict-facekit" / "neutral.npz").is_file():
-        return [], ["ICT-FaceKit head skipped: no shared data (set MIMETIC_SHARED_DATA to its data folder)"]
-    mesh, meta = load_ict(data / "ict-facekit")
-    mesh = _without_ict_shells(mesh, meta)
-    notes = []
-    try:
-        landmarks = auto_landmarks(mesh, renderer=renderer)
-    except MissingExtraError as error:
-        landmarks = ict_landmarks(mesh, meta)
-        notes.append(f"ICT-FaceKit head rigged from its own landmark vertices ({error})")
-    folder.mkdir(parents=True, exist_ok=True)
-    result = rig_head(mesh, landmarks, metadata={"source": "ict-facekit/neutral.npz"})
-    files = [
-        write_landmarks(landmarks, folder / "landmarks.json"),
-        save_rig(result.rig, folder / "ict.mrig"),
-        result.report.save(folder / "ict.fit.json"),
-        save_png(fit_report_image(result, renderer=renderer), folder / "ict.fit.png"),
-    ]
-    sheet = expression_sheet(result.rig, "wire", load_library(), size=256, renderer=renderer)
-    files.append(save_png(sheet, folder / "expressions.png"))
-    return files, notes
 
 
 def _action_sheets(

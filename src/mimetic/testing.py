@@ -9,16 +9,23 @@ and the same instance may be handed to many tests or benchmark cases:
 * ``range_end_params()``: each conformation parameter at either end of its range;
 * ``small_rig(seed)``: the recipe's rig of ``small_head(seed)``;
 * ``capped_skin(head)``: the head's skin with its eye and mouth openings closed, for
-  inside/outside tests.
+  inside/outside tests;
+* ``shared_data_dir()``, ``require_shared_data(path)``, ``load_ict(folder)``,
+  ``ict_landmarks(mesh, meta)``: the real data beside the repository (``../shared/data``, or
+  ``$MIMETIC_SHARED_DATA``), for tests, benchmarks and ``examples/``;
+* ``run_cli(*args)``: the ``mimetic`` command in this process.
 
-This module imports the test-free parts of mimetic only; nothing in the package imports it.
+This module imports the test-free parts of mimetic only; nothing in the package (the library,
+its CLI or ``mimetic demo``) imports it.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,7 +34,9 @@ from mimetic.head.params import PARAM_RANGES, HeadParams
 from mimetic.mesh.geometry import boundary_loops
 from mimetic.mesh.model import Mesh
 from mimetic.rig.model import Rig
-from mimetic.shared_data import SHARED_DATA_ENV, shared_data_dir
+
+if TYPE_CHECKING:
+    from mimetic.fit.landmarks import Landmarks
 
 SMALL_RESOLUTION = 2_500
 """Requested skin vertex count of the small heads: about 0.25 s to build, 2,580 skin vertices."""
@@ -130,6 +139,41 @@ def capped_skin(head: Head) -> Mesh:
         faces.append(np.column_stack([np.roll(loop, -1), loop, np.full(len(loop), n)]))
         n += 1
     return Mesh(np.concatenate(vertices), np.concatenate(faces))
+
+
+SHARED_DATA_ENV = "MIMETIC_SHARED_DATA"
+ICT_IBUG_USED = tuple(i for i in range(17, 68) if i not in (60, 64))
+"""The iBUG-68 landmarks of ICT-FaceKit's file that fits use: no jaw contour (0-16, which a mesh
+shows only in profile), and not the inner mouth corners 60/64, which name the same project
+landmarks as the outer 48/54."""
+
+
+def shared_data_dir() -> Path | None:
+    """The shared data folder (it holds a ``README.md``), or None when absent."""
+    env = os.environ.get(SHARED_DATA_ENV)
+    candidates = [Path(env)] if env else []
+    candidates.append(Path(__file__).resolve().parents[3] / "shared" / "data")
+    return next((c for c in candidates if (c / "README.md").is_file()), None)
+
+
+def load_ict(folder: Path) -> tuple[Mesh, dict]:
+    """ICT-FaceKit's neutral head (cm, all its parts) and its ``meta.json``, from ``folder`` (the
+    shared data's ``ict-facekit``)."""
+    data = np.load(folder / "neutral.npz")
+    meta = json.loads((folder / "meta.json").read_text())
+    mesh = Mesh(data["vertices"].astype(np.float64), data["faces"].astype(np.int64), units="cm")
+    return mesh, meta
+
+
+def ict_landmarks(mesh: Mesh, meta: dict) -> Landmarks:
+    """The 49 landmarks of ``ICT_IBUG_USED`` at ICT's own landmark vertices of ``mesh`` (the neutral,
+    or any mesh that keeps its first vertices, as without the eye shells), under project names."""
+    from mimetic.fit.landmarks import Landmarks
+    from mimetic.head.landmarks import IBUG68
+
+    ids = np.asarray(meta["landmarks_68"]["vertex_indices"])[list(ICT_IBUG_USED)]
+    names = tuple(IBUG68[i] for i in ICT_IBUG_USED)
+    return Landmarks(names, mesh.vertices[ids], np.ones(len(ids)), "cm", "ict-facekit landmarks_68")
 
 
 def require_shared_data(relative: str = "") -> Path:

@@ -14,15 +14,15 @@ import pytest
 from mimetic.engines import make_engine
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.errors import LandmarkError, MeshError, MimeticWarning
-from mimetic.fit.landmarks import MEDIAPIPE_LANDMARKS, Landmarks
+from mimetic.fit.autolandmarks import MEDIAPIPE_LANDMARKS
+from mimetic.fit.landmarks import Landmarks
 from mimetic.fit.pipeline import MAX_VERTICES, RigResult, rig_head
 from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.rig.recipe import build_rig
-from mimetic.shared_data import ict_landmarks, load_ict
-from mimetic.testing import require_shared_data
+from mimetic.testing import ict_landmarks, load_ict, require_shared_data
 
 FIT_NAMES = "no pupils, jaw contour or menton: the points a user would click"
 
@@ -361,7 +361,7 @@ def test_fitted_reference_lands_on_the_corresponding_points(target: Head, rigged
 
 def test_ict_rigs_from_automatic_landmarks(ict, ict_rigged: RigResult, mediapipe_ready) -> None:
     """The whole automatic path on a real face: MediaPipe landmarks, fit, rig."""
-    from mimetic.fit.landmarks import auto_landmarks
+    from mimetic.fit.autolandmarks import auto_landmarks
 
     mesh, _, _ = ict
     marks = auto_landmarks(mesh)

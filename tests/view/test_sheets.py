@@ -7,10 +7,10 @@ import pytest
 
 from mimetic.animate.expressions import load_library
 from mimetic.engines import make_engine
+from mimetic.render import raster
+from mimetic.render.camera import VIEWS, project
 from mimetic.rig.activations import pose
 from mimetic.testing import small_rig
-from mimetic.view import raster
-from mimetic.view.camera import VIEWS, project
 from mimetic.view.sheets import (
     expression_sheet,
     face_camera,

@@ -4,7 +4,8 @@ registration of the reference, rig transfer to the user's vertices, and the fit 
 ``rig_head(mesh, landmarks)`` runs it all; see ``mimetic.fit.pipeline``.
 """
 
-from mimetic.fit.landmarks import Landmarks, auto_landmarks, read_landmarks, write_landmarks
+from mimetic.fit.autolandmarks import auto_landmarks
+from mimetic.fit.landmarks import Landmarks, read_landmarks, write_landmarks
 from mimetic.fit.pipeline import RigResult, rig_head
 from mimetic.fit.report import FitReport
 from mimetic.fit.similarity import Similarity, fit_similarity

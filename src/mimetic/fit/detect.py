@@ -169,7 +169,7 @@ def detect_face(image: np.ndarray, *, min_score: float = 0.5) -> FaceDetection:
     Parameters
     ----------
     image : (h, w, 3) uint8
-        RGB, row 0 at the top (as ``mimetic.view.render`` returns).
+        RGB, row 0 at the top (as ``mimetic.render.render`` returns).
     min_score : float
         The FaceDetection score below which FaceMesh's landmarks are not trusted.
 

@@ -1,11 +1,21 @@
-"""Pictures of meshes: cameras and named views, GL and CPU rendering, overlays, contact sheets.
+"""Pictures of rigs and faces: contact sheets, muscle overlays, expression sheets, fit pictures, video.
 
-Nothing else in mimetic imports this package; it is for previews, reports and debugging.
+Built on ``mimetic.render`` (cameras and the offscreen renderers, re-exported here for
+convenience). Nothing else in mimetic imports this package; it is for previews, reports and debugging.
 """
 
-from mimetic.view.camera import VIEWS, Camera, Projection, clip_planes, frame_camera, project
-from mimetic.view.raster import rasterize
-from mimetic.view.render import Renderer, default_renderer, render
+from mimetic.render import (
+    VIEWS,
+    Camera,
+    Projection,
+    Renderer,
+    clip_planes,
+    default_renderer,
+    frame_camera,
+    project,
+    rasterize,
+    render,
+)
 from mimetic.view.sheet import contact_sheet, draw_lines, draw_points, overlay_segments, save_png
 
 __all__ = [

@@ -13,8 +13,8 @@ import numpy as np
 from mimetic.fit.pipeline import RigResult
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh
-from mimetic.view.camera import frame_camera, project
-from mimetic.view.render import Renderer, default_renderer
+from mimetic.render.camera import frame_camera, project
+from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.view.sheet import contact_sheet, draw_points
 
 RESIDUAL_RED_PCT = 1.0

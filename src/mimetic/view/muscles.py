@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from mimetic.render.camera import VIEWS, Camera, frame_camera, project
+from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.model import Rig
-from mimetic.view.camera import VIEWS, Camera, frame_camera, project
-from mimetic.view.render import Renderer, default_renderer
 from mimetic.view.sheet import draw_lines, overlay_segments
 
 KIND_COLORS = {"linear": (0.95, 0.25, 0.2), "sphincter": (1.0, 0.85, 0.2), "sheet": (0.2, 0.8, 0.95)}

@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from mimetic.atomic import atomic_write
-from mimetic.view.camera import Camera, project
+from mimetic.render.camera import Camera, project
 
 
 def _rgb8(image: np.ndarray) -> np.ndarray:

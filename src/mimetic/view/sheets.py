@@ -20,10 +20,10 @@ import numpy as np
 
 from mimetic.engines import Engine, make_engine
 from mimetic.mesh.model import Mesh
+from mimetic.render.camera import VIEWS, Camera
+from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import pose
 from mimetic.rig.model import Rig
-from mimetic.view.camera import VIEWS, Camera
-from mimetic.view.render import Renderer, default_renderer
 from mimetic.view.sheet import contact_sheet
 
 log = logging.getLogger(__name__)

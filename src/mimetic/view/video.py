@@ -20,9 +20,9 @@ from mimetic.atomic import atomic_path
 from mimetic.engines import make_engine
 from mimetic.engines.basis import Basis, evaluate_basis
 from mimetic.errors import MimeticError, MissingExtraError
+from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import Clip
 from mimetic.rig.model import Rig
-from mimetic.view.render import Renderer, default_renderer
 from mimetic.view.sheets import face_camera
 
 MIN_SIZE, MAX_SIZE = 64, 2160

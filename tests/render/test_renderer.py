@@ -1,4 +1,4 @@
-"""Tests for mimetic.view.render: the GL path, its agreement with the CPU rasterizer, backends.
+"""Tests for mimetic.render.renderer: the GL path, its agreement with the CPU rasterizer, backends.
 
 GL tests use the ``gl_renderer`` fixture: they skip without EGL, and fail on CI (CI=true).
 """
@@ -15,10 +15,10 @@ import trimesh
 
 from mimetic.errors import MimeticWarning, RenderError
 from mimetic.mesh.model import Mesh
-from mimetic.view import VIEWS, Camera, Renderer, frame_camera, project, rasterize, render
+from mimetic.render import VIEWS, Camera, Renderer, frame_camera, project, rasterize, render
 
-# The package attribute `mimetic.view.render` is the function, so fetch the module by name.
-render_module = importlib.import_module("mimetic.view.render")
+# `mimetic.render.render` is the function, so fetch the module `mimetic.render.renderer` by name.
+render_module = importlib.import_module("mimetic.render.renderer")
 BLACK = (0.0, 0.0, 0.0)
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from mimetic.errors import MeshError
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
-from mimetic.view.camera import Camera, _size, clip_planes
+from mimetic.render.camera import Camera, _size, clip_planes
 
 log = logging.getLogger(__name__)
 

@@ -21,8 +21,8 @@ import numpy as np
 from mimetic.errors import MimeticWarning, RenderError
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
-from mimetic.view import raster
-from mimetic.view.camera import VIEWS, Camera, _size, clip_planes, frame_camera
+from mimetic.render import raster
+from mimetic.render.camera import VIEWS, Camera, _size, clip_planes, frame_camera
 
 log = logging.getLogger(__name__)
 

@@ -1,4 +1,4 @@
-"""Tests for mimetic.view.raster, the CPU rasterizer (no GL needed)."""
+"""Tests for mimetic.render.raster, the CPU rasterizer (no GL needed)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import trimesh
 
 from mimetic.errors import MeshError
 from mimetic.mesh.model import Mesh
+from mimetic.render.raster import BACKGROUND, shade, to_uint8
 from mimetic.view import Camera, frame_camera, project, rasterize
-from mimetic.view.raster import BACKGROUND, shade, to_uint8
 
 
 def test_rasterize_small_sphere_centroid_matches_project():

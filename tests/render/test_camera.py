@@ -1,4 +1,4 @@
-"""Tests for mimetic.view.camera: matrices, framing, named views and ``project``."""
+"""Tests for mimetic.render.camera: matrices, framing, named views and ``project``."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from mimetic.view.camera import VIEWS, Camera, clip_planes, frame_camera, project
+from mimetic.render.camera import VIEWS, Camera, clip_planes, frame_camera, project
 
 BOX_MIN = np.array([-0.8, -1.1, -0.9])
 BOX_MAX = np.array([0.8, 1.2, 1.0])
