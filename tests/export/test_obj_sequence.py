@@ -117,3 +117,17 @@ def test_export_obj_sequence_missing_parent_is_a_write_error(rig, clip, tmp_path
 
     with pytest.raises(WriteError, match="parent folder does not exist"):
         export_obj_sequence(rig, clip, tmp_path / "no" / "seq")
+
+
+def test_export_obj_sequence_writes_the_users_source_frame(rig, clip, tmp_path):
+    """A rig made from a Z-up scan (face toward -Y) writes Z-up frames: rest lies on the user's mesh."""
+    import dataclasses
+
+    z_up = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # rig (Y up) -> source (Z up)
+    turned = dataclasses.replace(rig, metadata={**rig.metadata, "source_rotation": z_up.tolist()})
+    paths = export_obj_sequence(turned, clip, tmp_path / "seq")
+    np.testing.assert_array_equal(load_mesh(paths[0]).vertices, rig.mesh.vertices @ z_up.T)
+    posed = make_engine(rig, "wire").deform(clip.values[1])
+    np.testing.assert_allclose(load_mesh(paths[1]).vertices, posed @ z_up.T, atol=1e-12)
+    up = load_mesh(paths[0]).vertices
+    assert np.ptp(up[:, 2]) > np.ptp(up[:, 1])  # the head is tall along +Z, as the scan was

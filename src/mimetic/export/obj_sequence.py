@@ -4,8 +4,10 @@ Blender (the "Stop-motion-OBJ" add-on, or Mesh Sequence Cache after a conversion
 SOP with ``$F4`` and most point-cache converters read numbered files ``frame_0001.obj``,
 ``frame_0002.obj``, … . Each file is the rig's mesh exactly as ``mimetic.mesh.io.save_mesh``
 writes it (vertices in rig order and rig units, parts as ``g`` groups, per-vertex colours, a
-``# units:`` comment), with that frame's vertex positions; so ``load_mesh`` reads any frame back
-with the rig's vertex order. Frames are numbered from 1, with at least four digits.
+``# units:`` comment), with that frame's vertex positions in the frame of the mesh the rig was
+made from (``Rig.to_source_frame``: a Z-up scan's frames are Z-up, and the rest pose lies exactly
+on the input mesh); so ``load_mesh`` reads any frame back with the rig's vertex order.
+Frames are numbered from 1, with at least four digits.
 
 The faces, groups and colours are the same in every frame, so they are encoded once; each frame
 formats only its positions (about 70 ms a frame for the 13k-vertex default head). For the channel curves
@@ -103,7 +105,8 @@ def export_obj_sequence(
     Returns
     -------
     paths : tuple of Path
-        The files written, in frame order. Vertices are in rig order and rig units.
+        The files written, in frame order. Vertices are in rig order and rig units, in the user's
+        source frame (``Rig.to_source_frame``).
 
     Raises
     ------
@@ -140,7 +143,7 @@ def export_obj_sequence(
     except (PermissionError, FileExistsError) as error:
         raise WriteError(f"cannot create the folder {folder}: {error.strerror or error}") from None
 
-    frames = _ObjFrames(rig.mesh)
+    frames = _ObjFrames(rig.source_mesh())
     total = clip.n_frames
     names = [frame_name(prefix, f + 1, total) for f in range(total)]
     stale = [
@@ -175,7 +178,7 @@ def export_obj_sequence(
     for f0, batch in batches():
         for k, vertices in enumerate(batch):
             path = folder / names[f0 + k]
-            atomic_write_bytes(path, frames.encode(vertices))
+            atomic_write_bytes(path, frames.encode(rig.to_source_frame(vertices)))
             paths.append(path)
             if progress is not None:
                 progress(len(paths), total)

@@ -567,6 +567,40 @@ class Rig:
             f"units={self.units!r}, scale={self.scale:g})"
         )
 
+    # ---- the user's own frame
+
+    @cached_property
+    def source_rotation(self) -> np.ndarray:
+        """(3, 3) float64 rotation from the rig frame (+Y up, +Z forward) to the frame of the mesh the
+        rig was made from (``metadata["source_rotation"]``, written by ``rig_head``; the identity for
+        generated heads and meshes already in that convention). Read-only."""
+        raw = self.metadata.get("source_rotation")
+        if raw is None:
+            rotation = np.eye(3)
+        else:
+            try:
+                rotation = np.array(thaw_json(raw), dtype=np.float64)
+            except (TypeError, ValueError):
+                raise RigError(f"metadata source_rotation={raw!r} is not a 3x3 matrix") from None
+            if rotation.shape != (3, 3) or not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6):
+                raise RigError(
+                    f"metadata source_rotation must be a 3x3 rotation matrix; got {rotation.tolist()}"
+                )
+        rotation.setflags(write=False)
+        return rotation
+
+    def to_source_frame(self, vertices: np.ndarray) -> np.ndarray:
+        """Positions (..., 3) in rig units and the rig frame → the same points in the user's source
+        frame (same units): what OBJ, PLY and STL outputs hold, so a rest pose lies exactly on the
+        user's input mesh."""
+        return np.asarray(vertices, dtype=np.float64) @ self.source_rotation.T
+
+    def source_mesh(self, vertices: np.ndarray | None = None) -> Mesh:
+        """The rig's mesh (all parts, same vertex order) in the user's source frame, at the rest pose
+        or at ``vertices`` (n, 3) (a posed frame from an engine, rig frame)."""
+        v = self.mesh.vertices if vertices is None else vertices
+        return self.mesh.with_vertices(self.to_source_frame(v))
+
     # ---- sizes and names
 
     @property
