@@ -83,3 +83,55 @@ def test_rig_names_a_bad_landmark_file(head_files, tmp_path):
     bad.write_text('{"units": "cm", "landmarks": {"nose_tip": [0, 0, 1]}}')
     result = run_cli("rig", mesh_file, "--landmarks", bad, "-o", tmp_path / "x.mrig")
     assert result.exit_code == 1 and "at least 8" in result.output
+
+
+@pytest.fixture(scope="module")
+def z_up_rig(head_files):
+    """The head of ``head_files`` exported the Blender way, Z up with the face toward -Y, in mm with
+    no units in the file (an STL), rigged from the same landmarks turned likewise."""
+    head, _, _, folder = head_files
+    to_z_up = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # (x, y, z) -> (x, -z, y)
+    vertices = 10 * head.mesh.vertices @ to_z_up.T
+    mesh_file = save_mesh(type(head.mesh)(vertices, head.mesh.faces), folder / "z_up.obj")
+    names = ["nose_tip", "subnasale", "glabella", "pogonion", "upper_lip_top", "lower_lip_bottom"]
+    names += ["eye_outer_corner_L", "eye_outer_corner_R", "mouth_corner_L", "mouth_corner_R"]
+    marks = {n: (10 * head.landmark_positions([n])[0] @ to_z_up.T).tolist() for n in names}
+    lm_file = folder / "z_up_lm.json"
+    lm_file.write_text(json.dumps({"units": "mm", "landmarks": marks}))
+    out = folder / "z_up.mrig"
+    result = run_cli("rig", mesh_file, "--units", "mm", "--landmarks", lm_file, "-o", out)
+    assert result.exit_code == 0, result.output
+    return vertices, out, folder
+
+
+def test_pose_and_export_objs_of_a_z_up_head_lie_on_the_users_mesh(z_up_rig):
+    from mimetic.mesh.io import load_mesh
+
+    vertices, rig_file, folder = z_up_rig
+    rest = folder / "rest.obj"
+    assert run_cli("pose", rig_file, "-o", rest).exit_code == 0
+    np.testing.assert_allclose(load_mesh(rest).vertices, vertices, atol=1e-4)  # OBJ text precision
+    smile = folder / "smile.ply"
+    assert run_cli("pose", rig_file, "--set", "zygomatic_major_L=1", "-o", smile).exit_code == 0
+    moved = np.linalg.norm(load_mesh(smile).vertices - vertices, axis=1)
+    assert 1.0 < moved.max() < 30.0  # mm, in the user's frame: a smile moves the corner a few mm
+    shapes = folder / "shapes"
+    assert run_cli("export", rig_file, "-o", folder / "z_up.glb", "--obj-dir", shapes).exit_code == 0
+    smile_shape = load_mesh(shapes / "zygomatic_major_L.obj").vertices
+    offsets = np.linalg.norm(smile_shape - vertices, axis=1)
+    assert np.median(offsets) < 1e-3 and offsets.max() > 1.0  # on the user's mesh; the cheek moves (mm)
+
+
+def test_export_of_a_z_up_head_is_an_upright_glb(z_up_rig):
+    import pygltflib as gl
+
+    from mimetic.export import read_accessor
+
+    _, rig_file, folder = z_up_rig
+    path = folder / "upright.glb"
+    assert run_cli("export", rig_file, "-o", path).exit_code == 0
+    doc = gl.GLTF2.load(path)
+    assert all(node.rotation is None and node.matrix is None for node in doc.nodes)
+    skin = read_accessor(doc, doc.meshes[0].primitives[0].attributes.POSITION)
+    extent = np.ptp(skin, axis=0)
+    assert np.argmax(extent[:2]) == 1 and 0.15 < extent[1] < 0.35  # metres, tall along +Y

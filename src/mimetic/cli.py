@@ -399,7 +399,10 @@ def pose(
         else:
             from mimetic.mesh.io import save_mesh
 
-            save_mesh(posed_mesh(loaded, engine, values_c), out)
+            posed = posed_mesh(loaded, engine, values_c)
+            if kind in (".obj", ".ply", ".stl"):  # the user's own frame; glTF keeps its +Y up
+                posed = loaded.source_mesh(posed.vertices)
+            save_mesh(posed, out)
     stdout.print(f"wrote {out}", highlight=False)
 
 
@@ -581,8 +584,8 @@ def export_command(
 
             obj_dir.mkdir(parents=True, exist_ok=True)
             rest = loaded.mesh.vertices
-            for name, delta in targets.items():
-                written.append(save_mesh(loaded.mesh.with_vertices(rest + delta), obj_dir / f"{name}.obj"))
+            for name, delta in targets.items():  # in the user's own frame, on top of their mesh at rest
+                written.append(save_mesh(loaded.source_mesh(rest + delta), obj_dir / f"{name}.obj"))
     stdout.print(f"wrote {out} ({len(targets)} morph targets)", highlight=False)
     if obj_dir is not None:
         stdout.print(f"wrote {len(written) - 1} OBJs to {obj_dir}", highlight=False)

@@ -2,10 +2,14 @@
 
 Runs inside the bpy venv (Python 3.11, numpy < 2), not mimetic's: ``python blender_check.py FILE.glb
 OUT_DIR SECONDS``. Prints one JSON line (prefixed ``BLENDER_JSON``) and writes two arrays to
-OUT_DIR, both (n, 3) float64 in glTF axes (+Y up; Blender's Z-up import is undone):
+OUT_DIR, (n, 3) float64:
 
-* ``rest.npy``: the mesh's vertices in Blender's vertex order, without shape keys or armature;
-* ``posed.npy``: the evaluated mesh (shape keys and armature) at time SECONDS of the first action.
+* ``rest.npy``: the mesh's vertices in Blender's vertex order, without shape keys or armature, in
+  glTF axes (+Y up; Blender's Z-up import is undone);
+* ``posed.npy``: the evaluated mesh (shape keys and armature) at time SECONDS of the first action,
+  in glTF axes;
+* ``posed_blender.npy``: the same evaluated mesh in Blender's own world axes (+Z up, front -Y), as
+  Blender draws it.
 """
 
 import json
@@ -69,6 +73,7 @@ def main() -> None:
     posed = coordinates(posed_mesh) @ world[:3, :3].T + world[:3, 3]
     evaluated.to_mesh_clear()
     np.save(out / "posed.npy", to_gltf_axes(posed))
+    np.save(out / "posed_blender.npy", posed)
 
     report = {
         "result": sorted(result),

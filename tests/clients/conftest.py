@@ -1,6 +1,6 @@
 """Shared set-up of the client tests: the exported file, and the tools that open it.
 
-Each client test opens the same .glb (the small rig turned to a Z-up user frame, its baked muscle
+Each client test opens the same .glb (the small rig as if fitted to a Z-up scan, its baked muscle
 targets and a 1 s clip at 60 fps) in a real client and compares what the client shows with
 ``gltf_vertices``. The clients install themselves on first use and are cached:
 
@@ -65,10 +65,15 @@ class Exported:
     rig: object
     targets: dict
     clip: object
-    turn: np.ndarray  # (3, 3) the root node's rotation
+    turn: np.ndarray  # (3, 3) the rig's source rotation (its mesh came from a Z-up scan)
     rest: np.ndarray  # (n, 3) metres, glTF world frame
     posed: np.ndarray  # (n, 3) metres at SECONDS
     summary: dict  # read_glb_summary of the file
+
+    def landmark(self, vertices: np.ndarray, name: str) -> np.ndarray:
+        """The position (3,) of a rig landmark on ``vertices`` (n, 3) in rig order."""
+        point = self.rig.landmarks[name]
+        return np.asarray(point.bary) @ vertices[self.rig.mesh.faces[point.face]]
 
 
 @pytest.fixture(scope="session")

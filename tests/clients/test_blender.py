@@ -30,11 +30,11 @@ def blender(bpy_python, exported, tmp_path_factory):
     print(
         "blender:", json.dumps({k: v for k, v in report.items() if k not in ("shape_keys", "vertex_groups")})
     )
-    return report, np.load(out / "rest.npy"), np.load(out / "posed.npy")
+    return report, np.load(out / "rest.npy"), np.load(out / "posed.npy"), np.load(out / "posed_blender.npy")
 
 
 def test_blender_imports_shape_keys_bones_and_materials(blender, exported):
-    report, _, _ = blender
+    report, *_ = blender
     rig = exported.rig
     assert report["blender"] == "5.0.1" and report["result"] == ["FINISHED"]
     assert report["shape_keys"] == ["Basis", *exported.targets]
@@ -45,7 +45,7 @@ def test_blender_imports_shape_keys_bones_and_materials(blender, exported):
 
 
 def test_blender_action_covers_the_clip(blender, exported):
-    report, _, _ = blender
+    report, *_ = blender
     (action,) = report["actions"]
     assert action["name"] == "clip"
     duration = (exported.clip.n_frames - 1) / exported.clip.fps
@@ -59,16 +59,28 @@ def test_blender_action_covers_the_clip(blender, exported):
 
 
 def test_blender_rest_vertices_keep_rig_order_and_frame(blender, exported):
-    _, rest, _ = blender
+    _, rest, *_ = blender
     assert rest.shape == exported.rest.shape
     np.testing.assert_allclose(rest, exported.rest, atol=1e-6)
     extent = np.ptp(rest, axis=0)
     assert 0.15 < extent.max() < 0.35  # a head-sized head in metres
-    assert np.argmax(extent) == 2  # rotated back to the user's Z-up frame: the head is tallest along Z
+    assert np.argmax(extent) == 1  # glTF's frame (+Y up), though the user's mesh was Z-up
+
+
+def test_blender_draws_the_head_upright_facing_front(blender, exported):
+    """As Blender draws it (its own axes: +Z up, the front view looking along +Y): the chin is below the
+    brow and the face looks toward -Y, for a rig made from a Z-up scan."""
+    *_, drawn = blender
+    up = exported.landmark(drawn, "glabella") - exported.landmark(drawn, "subnasale")
+    assert up[2] > 0.9 * np.linalg.norm(up)
+    forward = exported.landmark(drawn, "nose_tip") - 0.5 * (
+        exported.landmark(drawn, "tragion_L") + exported.landmark(drawn, "tragion_R")
+    )
+    assert -forward[1] > 0.8 * np.linalg.norm(forward)  # the ears are above the nose tip
 
 
 def test_blender_pose_matches_gltf_vertices(blender, exported):
-    _, _, posed = blender
+    _, _, posed, _ = blender
     moved = np.linalg.norm(exported.posed - exported.rest, axis=1).max()
     assert moved > 0.005  # the pose really moves the face (metres)
     np.testing.assert_allclose(posed, exported.posed, atol=1e-6)

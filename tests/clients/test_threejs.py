@@ -102,3 +102,15 @@ def test_threejs_pose_matches_gltf_vertices(three, exported):
     positions = np.array(three["positions"], dtype=np.float64).reshape(-1, 3)
     assert positions.shape == exported.posed.shape
     np.testing.assert_allclose(positions, exported.posed, atol=1e-6)
+
+
+def test_threejs_shows_the_head_upright_facing_the_viewer(three, exported):
+    """three.js's world is +Y up with the default camera looking down -Z: the posed head's chin is below
+    its brow and its face looks toward +Z, though the rig was made from a Z-up scan."""
+    shown = np.array(three["positions"], dtype=np.float64).reshape(-1, 3)
+    up = exported.landmark(shown, "glabella") - exported.landmark(shown, "subnasale")
+    assert up[1] > 0.9 * np.linalg.norm(up)
+    forward = exported.landmark(shown, "nose_tip") - 0.5 * (
+        exported.landmark(shown, "tragion_L") + exported.landmark(shown, "tragion_R")
+    )
+    assert forward[2] > 0.8 * np.linalg.norm(forward)  # the ears are above the nose tip

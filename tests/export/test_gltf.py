@@ -20,7 +20,7 @@ from mimetic.engines import make_engine
 from mimetic.engines.bake import bake, random_poses
 from mimetic.engines.basis import evaluate_basis
 from mimetic.engines.skinning import bone_transforms
-from mimetic.errors import ActivationError, MeshError, MimeticWarning, RigError
+from mimetic.errors import ActivationError, MeshError, MimeticWarning
 from mimetic.export import (
     ExportError,
     bone_channels,
@@ -481,32 +481,31 @@ def test_export_glb_clip_driving_nothing_writes_no_animation(rig, tmp_path):
 # --------------------------------------------------------------------------- frame, names, summary
 
 
-def test_export_glb_source_rotation_on_root_node(rig, targets, clip, tmp_path):
+def _landmark(rig, vertices: np.ndarray, name: str) -> np.ndarray:
+    """The position (3,) of a rig landmark on ``vertices`` (n, 3) in rig order."""
+    point = rig.landmarks[name]
+    return np.asarray(point.bary) @ vertices[rig.mesh.faces[point.face]]
+
+
+def test_export_glb_of_a_z_up_scan_stands_upright_as_clients_skin_it(rig, targets, clip, tmp_path):
+    """A rig fitted to a Z-up scan (Blender's convention, face toward -Y) is written in glTF's own
+    frame: the skinned head (joint world matrices x inverse bind matrices) has +Y up and faces +Z."""
     turn = Rotation.from_euler("x", -90, degrees=True).as_matrix()  # rig +Y up -> the user's +Z up
     user = rotated(rig, turn)
     doc = gl.GLTF2.load(export_glb(user, tmp_path / "z.glb", morph_targets=targets, clip=clip))
-    root = doc.nodes[1]
-    assert root.name == "z" and doc.scenes[0].nodes == [0, 1]
-    np.testing.assert_allclose(Rotation.from_quat(root.rotation).as_matrix(), turn, atol=1e-12)
-    np.testing.assert_allclose(
-        file_vertices(doc, None), rig.mesh.vertices * CM @ turn.T, rtol=1e-6, atol=1e-8
-    )
+    plain = gl.GLTF2.load(export_glb(rig, tmp_path / "y.glb", morph_targets=targets, clip=clip))
+    assert all(node.rotation is None and node.matrix is None for node in doc.nodes[:2])
+    for frame in (None, 12):
+        shown = file_vertices(doc, frame)
+        np.testing.assert_array_equal(shown, file_vertices(plain, frame))
+        up = _landmark(rig, shown, "glabella") - _landmark(rig, shown, "subnasale")
+        assert up[1] > 0.9 * np.linalg.norm(up)  # nose below brow along +Y (lying down: about 0)
+        forward = _landmark(rig, shown, "nose_tip") - 0.5 * (
+            _landmark(rig, shown, "tragion_L") + _landmark(rig, shown, "tragion_R")
+        )
+        assert forward[2] > 0.9 * np.linalg.norm(forward)  # the face looks down +Z
     pose = dict(zip(clip.channels, clip.values[12], strict=True))
-    expected = gltf_vertices(user, targets, pose)
-    np.testing.assert_allclose(expected, gltf_vertices(rig, targets, pose) @ turn.T, atol=1e-12)
-    np.testing.assert_allclose(file_vertices(doc, 12), expected, atol=2e-6 * rig.scale * CM)
-
-    doc = gl.GLTF2.load(export_glb(user, tmp_path / "y.glb", restore_frame=False))
-    assert doc.nodes[1].rotation is None
-    with pytest.raises(RigError, match="reflection"):
-        export_glb(rotated(rig, np.diag([1.0, 1.0, -1.0])), tmp_path / "r.glb")
-    with pytest.raises(RigError, match="3x3 rotation"):
-        export_glb(rotated(rig, 2 * np.eye(3)), tmp_path / "s.glb")
-
-
-def test_export_glb_identity_source_rotation_leaves_root_unrotated(rig, exported):
-    _, doc = exported
-    assert doc.nodes[1].rotation is None and doc.nodes[1].name == "face"
+    np.testing.assert_array_equal(gltf_vertices(user, targets, pose), gltf_vertices(rig, targets, pose))
 
 
 def test_export_glb_root_named_like_a_bone_gets_suffix(rig, tmp_path):

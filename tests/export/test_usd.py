@@ -24,7 +24,7 @@ from mimetic.atomic import WriteError
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.engines.skinning import bone_transforms
-from mimetic.errors import ActivationError, MimeticWarning, MissingExtraError, RigError
+from mimetic.errors import ActivationError, MimeticWarning, MissingExtraError
 from mimetic.export.gltf import ExportError, gltf_vertices, morph_targets_from_basis
 from mimetic.export.usd import check_usd, export_usd, usd_names
 from mimetic.mesh.model import Mesh
@@ -528,34 +528,35 @@ def test_export_usd_clip_driving_nothing_writes_no_animation(usd, rig, tmp_path)
 # --------------------------------------------------------------------------- frame
 
 
-def test_export_usd_source_rotation_on_skel_root(usd, rig, targets, tmp_path):
+def test_export_usd_of_a_z_up_scan_is_a_y_up_stage_with_the_head_upright(usd, rig, targets, tmp_path):
+    """A rig fitted to a Z-up scan: the stage says Y up and UsdSkel's own skinning shows the head with
+    +Y up and the face looking down +Z (no transform turning it back to Z-up)."""
     turn = Rotation.from_euler("x", -90, degrees=True).as_matrix()  # rig +Y up -> the user's +Z up
     user = rotated(rig, turn)
     clip = moving_clip(rig)
     path = export_usd(user, tmp_path / "z.usdc", morph_targets=targets, clip=clip)
     assert check_usd(path) == []
     stage = usd.Usd.Stage.Open(str(path))
+    assert usd.UsdGeom.GetStageUpAxis(stage) == "Y"
     root, _, _ = prims(usd, stage)
-    m = np.array(root.ComputeLocalToWorldTransform(usd.Usd.TimeCode.Default()))
-    np.testing.assert_allclose(m[:3, :3], turn.T, atol=1e-12)  # row vectors: v' = v Mᵀ
-    expected = gltf_vertices(user, targets, frame_pose(clip, 6))
-    np.testing.assert_allclose(
-        expected, gltf_vertices(rig, targets, frame_pose(clip, 6)) @ turn.T, atol=1e-12
+    np.testing.assert_array_equal(
+        np.array(root.ComputeLocalToWorldTransform(usd.Usd.TimeCode.Default())), np.eye(4)
     )
-    np.testing.assert_allclose(usd_pose(usd, stage, 6), expected, atol=POSE_TOL_M)
-    np.testing.assert_allclose(baked_pose(usd, path, [6])[6], expected, atol=POSE_TOL_M)
+    shown = usd_pose(usd, stage, 6)
+    np.testing.assert_allclose(shown, gltf_vertices(rig, targets, frame_pose(clip, 6)), atol=POSE_TOL_M)
+    faces = rig.mesh.faces
 
-    plain = usd.Usd.Stage.Open(str(export_usd(user, tmp_path / "y.usda", restore_frame=False)))
-    assert prims(usd, plain)[0].GetOrderedXformOps() == []
-    mirror = usd.Usd.Stage.Open(str(export_usd(rotated(rig, np.diag([1.0, 1.0, -1.0])), tmp_path / "r.usda")))
-    assert np.linalg.det(np.array(prims(usd, mirror)[0].GetLocalTransformation())[:3, :3]) == pytest.approx(
-        -1
-    )
-    with pytest.raises(RigError, match="orthonormal"):
-        export_usd(rotated(rig, 2 * np.eye(3)), tmp_path / "s.usda")
+    def at(name: str) -> np.ndarray:
+        point = rig.landmarks[name]
+        return np.asarray(point.bary) @ shown[faces[point.face]]
+
+    up = at("glabella") - at("subnasale")
+    assert up[1] > 0.9 * np.linalg.norm(up)  # lying on its back: about 0
+    forward = at("nose_tip") - 0.5 * (at("tragion_L") + at("tragion_R"))
+    assert forward[2] > 0.9 * np.linalg.norm(forward)
 
 
-def test_export_usd_identity_source_rotation_writes_no_transform(usd, exported):
+def test_export_usd_writes_no_transform_on_the_skel_root(usd, exported):
     _, stage = exported
     assert stage.GetDefaultPrim().GetAttribute("xformOpOrder").Get() is None
 

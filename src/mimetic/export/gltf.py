@@ -2,14 +2,17 @@
 
 What the file holds
 -------------------
-* **Nodes.** A root node (named after the file) holds the joint hierarchy: one node per
-  ``rig.bones`` entry (head, jaw, eyelids, eyes), each placed at its bone's ``head`` with an
-  identity rest rotation (bone tails are kept in each joint's ``extras.tail``). The root's
-  rotation is ``rig.metadata["source_rotation"]`` (rig frame → the user's original frame; the
-  identity for generated heads, then left out), so the head appears as the user's own mesh was
-  oriented. The skinned mesh node is a second scene root with no transform: glTF ignores the
-  transforms above a skinned mesh, which follows its joints (and so the root's rotation). Without
-  ``skin`` the mesh node sits under the root instead.
+* **Frame.** glTF's own convention, as Blender's glTF exporter writes it: +Y up, the face looking
+  down +Z, in metres. A rig fitted to a Z-up scan (Blender's convention, face toward -Y) lives in
+  that frame already (``rig_head`` turns the user's vertices by an axis-aligned rotation, recorded
+  in ``Rig.source_rotation``), so it is written as it is and every client that converts glTF to
+  its own up axis (Blender to Z-up, Unity, Unreal) shows the head upright. (OBJ, PLY and STL
+  outputs go back to the user's own frame instead: ``Rig.to_source_frame``.)
+* **Nodes.** A root node (named after the file, no transform) holds the joint hierarchy: one node
+  per ``rig.bones`` entry (head, jaw, eyelids, eyes), each placed at its bone's ``head`` with an
+  identity rest rotation (bone tails are kept in each joint's ``extras.tail``). The skinned mesh
+  node is a second scene root with no transform: glTF ignores the transforms above a skinned
+  mesh, which follows its joints. Without ``skin`` the mesh node sits under the root instead.
 * **Units.** Coordinates are scaled to ``units`` (default metres, the glTF unit) in the data
   itself, not by a node scale: Blender, three.js and the Khronos validator all read a head-sized
   head without any armature or node scale to compensate.
@@ -78,7 +81,7 @@ SPARSE_MAX_SHARE = 0.5
 """A morph target touching at most this share of a primitive's vertices is stored sparse."""
 
 ROTATION_TOL = 1e-6
-"""Largest deviation from an orthonormal matrix accepted for ``source_rotation`` and joint poses."""
+"""Largest deviation from an orthonormal matrix accepted for joint poses."""
 
 MOTION_TOL_REL = 1e-9
 """A joint whose position changes by less than this fraction of the head height gets no translation."""
@@ -185,12 +188,11 @@ def gltf_vertices(
     *,
     skin: bool = True,
     units: str = "m",
-    restore_frame: bool = True,
 ) -> np.ndarray:
     """Vertex positions (n, 3) float64 that a glTF client shows for one pose of an exported rig.
 
     ``skinning(rest + Σ_t w_t · target_t)`` with glTF's linear blend skinning, in the file's units
-    and frame (the root node's rotation applied), in rig vertex order. ``pose`` maps channel or
+    and frame (glTF's: +Y up, +Z forward), in rig vertex order. ``pose`` maps channel or
     target names to values as a clip frame does: a target takes the value of the channel of its
     name (0 when absent), the joints follow the rig's bone channels. Compare with an engine
     (``make_engine(rig).deform``, scaled and rotated the same way) to see what the file loses.
@@ -206,8 +208,7 @@ def gltf_vertices(
     if skin:
         values = np.array([float(pose.get(c.name, c.default)) for c in rig.channels])
         v = linear_blend_skinning(v, rig.skin_weights, bone_transforms(rig, values))
-    rotation = _source_rotation(rig) if restore_frame else np.eye(3)
-    return (v * scale) @ rotation.T
+    return v * scale
 
 
 # --------------------------------------------------------------------------- the binary buffer
@@ -345,24 +346,6 @@ def check_targets(targets: Mapping[str, Any] | None, n: int) -> dict[str, np.nda
     return out
 
 
-def _source_rotation(rig: Rig) -> np.ndarray:
-    raw = rig.metadata.get("source_rotation")
-    if raw is None:
-        return np.eye(3)
-    try:
-        r = np.array(raw, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise RigError(f"rig metadata source_rotation={raw!r} is not a 3x3 matrix") from None
-    if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=ROTATION_TOL):
-        raise RigError(f"rig metadata source_rotation must be a 3x3 rotation matrix; got {r.tolist()}")
-    if np.linalg.det(r) < 0:
-        raise RigError(
-            "rig metadata source_rotation is a reflection (determinant -1); a glTF node can only rotate. "
-            "Export with restore_frame=False."
-        )
-    return r
-
-
 def quaternions(rotations: np.ndarray) -> np.ndarray:
     """Unit quaternions (f, 4) x y z w of rotations (f, 3, 3), each in the hemisphere of the one before."""
     q = Rotation.from_matrix(rotations).as_quat()  # (f, 4), scalar last as in glTF
@@ -455,7 +438,6 @@ def export_glb(
     skin: bool = True,
     target_normals: bool = True,
     units: str = "m",
-    restore_frame: bool = True,
     name: str | None = None,
 ) -> Path:
     """Write ``rig`` (and optionally morph targets and one animation) to a .glb file, atomically.
@@ -484,8 +466,6 @@ def export_glb(
         Unit of the coordinates written. glTF's unit is the metre; anything else gives a head 10x to
         1000x too big in glTF viewers and is only for pipelines that expect it. Recorded in
         ``asset.extras.units``.
-    restore_frame : bool
-        Put the user's original orientation (``rig.metadata["source_rotation"]``) on the root node.
     name : str, optional
         Name of the root node (``<name>_root`` if a bone has that name); the mesh and its node are
         ``<name>_mesh``. Defaults to the file's stem.
@@ -502,7 +482,7 @@ def export_glb(
     ActivationError
         Clip channels that are neither rig channels nor target names.
     RigError
-        A ``source_rotation`` that is not a rotation.
+        A bone whose pose is not a rotation plus a translation.
     WriteError
         The folder is missing or not writable; an existing file is left as it was.
     """
@@ -586,13 +566,10 @@ def export_glb(
         )
     )
 
-    # nodes: 0 the mesh, 1 the root (the user's orientation), 2.. joints in rig.bones order.
-    # A skinned mesh ignores its node's parents (glTF), so it is a scene root beside the root node
-    # that holds the skeleton; an unskinned mesh sits under the root node.
-    rotation = _source_rotation(rig) if restore_frame else np.eye(3)
+    # nodes: 0 the mesh, 1 the root, 2.. joints in rig.bones order. A skinned mesh ignores its
+    # node's parents (glTF), so it is a scene root beside the root node that holds the skeleton; an
+    # unskinned mesh sits under the root node.
     root = gl.Node(name=name, children=[] if skin else [0])
-    if not np.allclose(rotation, np.eye(3), atol=1e-12):
-        root.rotation = Rotation.from_matrix(rotation).as_quat().tolist()
     doc.nodes += [gl.Node(name=f"{name}_mesh", mesh=0), root]
     joint0 = len(doc.nodes)
     if skin:

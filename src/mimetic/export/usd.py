@@ -10,9 +10,10 @@ One stage whose default prim is a ``SkelRoot`` named after the file (``/face`` f
 * **Stage metadata.** ``upAxis = "Y"``, ``metersPerUnit`` from ``units`` (default metres: 1.0),
   and with a clip ``timeCodesPerSecond = framesPerSecond = clip.fps``, ``startTimeCode = 0``,
   ``endTimeCode = frames - 1``: frame k of the clip is time code k.
-* **Frame.** ``rig.metadata["source_rotation"]`` (rig frame → the user's original frame) becomes
-  an ``xformOp:transform`` on the SkelRoot, left out when it is the identity. Unlike a glTF node,
-  a USD transform may reflect (determinant -1); USD then reverses the faces' orientation itself.
+* **Frame.** The stage's own declared convention, ``upAxis = "Y"`` with the face looking down +Z,
+  and the rig's points as they are (no transform on the SkelRoot): a rig fitted to a Z-up scan
+  already lives in that frame (``Rig.source_rotation`` records the turn), so usdview, Blender,
+  Maya and Unreal, which convert a Y-up stage to their own up axis, show the head upright.
 * **Mesh** (``/face/mesh``). One ``Mesh`` holding all the rig's vertices in the rig's order,
   scaled to ``units`` (float32 ``points``); triangles (``faceVertexCounts`` all 3,
   ``subdivisionScheme = "none"``, right-handed as the rig's counter-clockwise faces); area-weighted
@@ -143,7 +144,6 @@ def export_usd(
     clip_name: str = "clip",
     target_normals: bool = True,
     units: str = "m",
-    restore_frame: bool = True,
     name: str | None = None,
 ) -> Path:
     """Write ``rig`` (and optionally morph targets and one animation) as a UsdSkel asset, atomically.
@@ -170,8 +170,6 @@ def export_usd(
     units : {"m", "dm", "cm", "mm"}
         Unit of the coordinates written, recorded as the stage's ``metersPerUnit``. USD tools scale
         by it, so any unit shows the head at its true size; "cm" suits Maya-style pipelines.
-    restore_frame : bool
-        Put the user's original orientation (``rig.metadata["source_rotation"]``) on the SkelRoot.
     name : str, optional
         Name of the SkelRoot (the default prim); defaults to the file's stem. Made a valid identifier.
 
@@ -189,8 +187,6 @@ def export_usd(
         that is not a ``Clip``.
     ActivationError
         Clip channels that are neither rig channels nor target names.
-    RigError
-        A ``source_rotation`` that is not orthonormal.
     WriteError
         The folder is missing or not writable; an existing file is left as it was.
     """
@@ -201,7 +197,6 @@ def export_usd(
         )
     units, scale, targets = check_export_inputs(rig, morph_targets, clip, clip_name, units)
     values = None if clip is None else clip_values(rig, clip, tuple(targets))  # (f, c) rig order
-    rotation = _source_rotation(rig) if restore_frame else np.eye(3)
     pxr = _import_pxr()
 
     stage = pxr.Usd.Stage.CreateInMemory()
@@ -216,10 +211,6 @@ def export_usd(
     root = pxr.UsdSkel.Root.Define(stage, root_path)
     stage.SetDefaultPrim(root.GetPrim())
     pxr.Usd.ModelAPI(root).SetKind("component")
-    if not np.allclose(rotation, np.eye(3), rtol=0.0, atol=1e-12):
-        m = np.eye(4)
-        m[:3, :3] = rotation.T  # USD matrices act on row vectors: the transpose of ours
-        root.AddTransformOp().Set(pxr.Gf.Matrix4d(m.tolist()))
 
     skeleton, joint_paths = _define_skeleton(pxr, stage, rig, root_path.AppendChild("skeleton"), scale)
     shape_names = _define_mesh(
@@ -458,20 +449,6 @@ def _influences(rig: Rig) -> tuple[np.ndarray, np.ndarray]:
     others = weights.sum(axis=1, dtype=np.float64) - weights[np.arange(n), big]
     weights[np.arange(n), big] = (1.0 - others).astype(np.float32)
     return joints, weights
-
-
-def _source_rotation(rig: Rig) -> np.ndarray:
-    """``rig.metadata["source_rotation"]`` (3, 3), the identity when absent; reflections allowed."""
-    raw = rig.metadata.get("source_rotation")
-    if raw is None:
-        return np.eye(3)
-    try:
-        r = np.array(raw, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise RigError(f"rig metadata source_rotation={raw!r} is not a 3x3 matrix") from None
-    if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=ROTATION_TOL):
-        raise RigError(f"rig metadata source_rotation must be a 3x3 orthonormal matrix; got {r.tolist()}")
-    return r
 
 
 def _export_layer(layer, path: str) -> bool:
