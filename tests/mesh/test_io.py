@@ -17,7 +17,7 @@ from hypothesis.extra.numpy import arrays
 
 from mimetic.errors import MeshError, MimeticWarning
 from mimetic.mesh.io import SUPPORTED_FORMATS, load_mesh, save_mesh
-from mimetic.mesh.model import Mesh
+from mimetic.mesh.model import Material, Mesh
 from mimetic.mesh.validate import validate_mesh
 
 # --- builders -------------------------------------------------------------------------------------
@@ -262,14 +262,20 @@ f -5/1/1 -3/2/1 -4/3/1
 def test_load_mesh_obj_with_uv_and_normals_keeps_every_v_line_in_order(tmp_path):
     path = tmp_path / "uv.obj"
     path.write_text(OBJ_WITH_UV)
-    mesh = load_mesh(path, units="cm")
+    with pytest.warns(MimeticWarning, match="head.mtl"):  # its mtllib is not beside it
+        mesh = load_mesh(path, units="cm")
     assert mesh.vertices.shape == (6, 3)  # the unused last vertex is kept
     np.testing.assert_array_equal(mesh.vertices[:, 0], [0, 10, 0, 0, 10, 99])
     np.testing.assert_array_equal(
         mesh.faces,
         [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3], [1, 3, 4], [1, 3, 2]],  # quad fanned in place
     )
-    assert {k: v.tolist() for k, v in mesh.parts.items()} == {"skin": [0, 1, 5], "eye": [2, 3, 4]}
+    assert {k: v.tolist() for k, v in mesh.parts.items()} == {
+        "skin": [0, 1, 5],
+        "skin_mat": [0, 1, 2, 3, 4, 5],  # usemtl: a material names a part too
+        "eye": [2, 3, 4],
+    }
+    assert mesh.materials == {}  # no .mtl file: nothing known about skin_mat
     assert mesh.units == "cm"
 
 
@@ -316,6 +322,99 @@ def test_load_mesh_obj_matches_trimesh_positions_where_trimesh_keeps_order(tmp_p
     path = save_mesh(mesh, tmp_path / "plain.obj")
     reference = trimesh.load_mesh(path, process=False, maintain_order=True)
     np.testing.assert_allclose(load_mesh(path).vertices, reference.vertices, rtol=0, atol=0)
+
+
+OBJ_WITH_MATERIALS = """mtllib head.mtl
+v 0 0 0
+v 20 0 0
+v 0 20 0
+v 0 0 20
+v 99 99 99
+v 20 20 0
+g head
+usemtl Skin
+f 1 2 3
+usemtl Film
+f 1 3 4
+usemtl Lash
+f 2 6 3
+"""
+MTL = """# three materials
+newmtl Skin
+Kd 0.8 0.5 0.4
+newmtl Film
+Kd 1 1 1
+Tr 0.75
+newmtl Lash
+Kd 0.1 0.1 0.1
+d 1.0
+"""
+
+
+def test_load_mesh_obj_materials_become_parts_with_mtl_colour_and_opacity(tmp_path):
+    (tmp_path / "head.obj").write_text(OBJ_WITH_MATERIALS)
+    (tmp_path / "head.mtl").write_text(MTL)
+    mesh = load_mesh(tmp_path / "head.obj", units="cm", check=False)
+    np.testing.assert_array_equal(
+        mesh.vertices, [[0, 0, 0], [20, 0, 0], [0, 20, 0], [0, 0, 20], [99, 99, 99], [20, 20, 0]]
+    )  # every v line, in order, the unused one too
+    np.testing.assert_array_equal(mesh.faces, [[0, 1, 2], [0, 2, 3], [1, 5, 2]])
+    assert {k: v.tolist() for k, v in mesh.parts.items()} == {
+        "head": [0, 1, 2],
+        "Skin": [0],
+        "Film": [1],
+        "Lash": [2],
+    }
+    assert mesh.materials == {
+        "Skin": Material("Skin", (0.8, 0.5, 0.4), 1.0),
+        "Film": Material("Film", (1.0, 1.0, 1.0), 0.25),  # Tr 0.75
+        "Lash": Material("Lash", (0.1, 0.1, 0.1), 1.0),
+    }
+    assert mesh.materials["Film"].transparent and not mesh.materials["Skin"].transparent
+    # every opaque face is coloured, so the colours become per-vertex: the mean of the opaque faces
+    # around a vertex, a see-through face's colour only where no opaque face is, grey if unused
+    np.testing.assert_allclose(
+        mesh.colors,
+        [[0.8, 0.5, 0.4], [0.45, 0.3, 0.25], [0.45, 0.3, 0.25], [1, 1, 1], [0.6, 0.6, 0.6], [0.1, 0.1, 0.1]],
+        atol=1e-6,
+    )
+
+
+def test_load_mesh_obj_missing_mtl_warns_and_loads_material_parts_without_materials(tmp_path):
+    (tmp_path / "head.obj").write_text(OBJ_WITH_MATERIALS)
+    with pytest.warns(MimeticWarning, match=r"head\.mtl.*beside the OBJ"):
+        mesh = load_mesh(tmp_path / "head.obj", units="cm", check=False)
+    assert mesh.n_vertices == 6 and mesh.n_faces == 3
+    assert list(mesh.parts) == ["head", "Skin", "Film", "Lash"]
+    assert mesh.materials == {}
+    assert mesh.colors is None
+
+
+def test_load_mesh_obj_textured_default_and_uncoloured_materials_leave_colors_unset(tmp_path):
+    (tmp_path / "head.obj").write_text(OBJ_WITH_MATERIALS.replace("Film", "Material.001"))
+    (tmp_path / "head.mtl").write_text(
+        "newmtl Skin\nKd 0.8 0.5 0.4\nmap_Kd skin.png\n"  # Kd only tints the texture
+        "newmtl Material.001\nKd 0.8 0.8 0.8\n"  # a modelling tool's placeholder
+        "newmtl Lash\nd -halo 0.3\n"  # no Kd; opacity with the -halo option
+    )
+    mesh = load_mesh(tmp_path / "head.obj", units="cm", check=False)
+    assert mesh.materials == {
+        "Skin": Material("Skin", None, 1.0),
+        "Material.001": Material("Material.001", None, 1.0),
+        "Lash": Material("Lash", None, 0.3),
+    }
+    assert mesh.colors is None  # no face has a colour from the file
+
+
+def test_save_load_obj_with_materials_keeps_vertices_colours_and_parts(tmp_path):
+    (tmp_path / "head.obj").write_text(OBJ_WITH_MATERIALS)
+    (tmp_path / "head.mtl").write_text(MTL)
+    loaded = load_mesh(tmp_path / "head.obj", units="cm", check=False)
+    again = load_mesh(save_mesh(loaded, tmp_path / "copy.obj"), check=False)
+    assert_same_arrays(again, loaded)
+    np.testing.assert_array_equal(again.colors, loaded.colors)
+    assert {k: v.tolist() for k, v in again.parts.items()} == {k: v.tolist() for k, v in loaded.parts.items()}
+    assert again.units == "cm"
 
 
 # --- glTF reading ---------------------------------------------------------------------------------
@@ -423,6 +522,61 @@ def test_load_mesh_glb_accessor_past_buffer_end_raises(tmp_path):
     path.write_bytes(glb_bytes(header, blob))
     with pytest.raises(MeshError, match=r"bad\.glb"):
         load_mesh(path)
+
+
+def test_load_mesh_glb_materials_give_parts_colours_and_opacity(tmp_path):
+    big = (np.array([[0, 0, 0], [20, 0, 0], [0, 20, 0], [0, 0, 20]]) + 0.0).astype(np.float32)
+    small = (big / 10 + 5).astype(np.float32)
+    tri = np.array([0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3], dtype=np.uint32)
+    meshes = [
+        {"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]},
+        {"primitives": [{"attributes": {"POSITION": 2}, "indices": 3, "material": 1}]},
+        {"primitives": [{"attributes": {"POSITION": 4}, "indices": 5, "material": 2}]},
+    ]
+    materials = [
+        {"name": "SkinMat", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.5, 0.4, 1.0]}},
+        {"name": "Shell", "alphaMode": "BLEND",
+         "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.9, 1, 0.2]}},
+        {"name": "Cut", "alphaMode": "MASK", "alphaCutoff": 0.5,
+         "pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.1, 0.1, 0.4]}},
+    ]  # fmt: skip
+    nodes = [{"name": "skin", "mesh": 0}, {"name": "occlusion", "mesh": 1}, {"name": "lashes", "mesh": 2}]
+    header, blob = gltf_header(
+        [big, tri, small, tri, small + 1, tri], meshes, nodes, [0, 1, 2], materials=materials
+    )
+    path = tmp_path / "materials.glb"
+    path.write_bytes(glb_bytes(header, blob))
+    mesh = load_mesh(path, units="cm", check=False)
+    assert list(mesh.parts) == ["skin", "occlusion", "lashes"]
+    assert mesh.materials["skin"] == Material("SkinMat", (0.8, 0.5, 0.4), 1.0)
+    assert mesh.materials["occlusion"].opacity == pytest.approx(0.2)
+    assert mesh.materials["occlusion"].transparent
+    assert mesh.materials["lashes"].opacity == 0.0  # MASK: alpha below the cutoff
+    assert mesh.n_vertices == 12  # vertex order and count as stored
+    np.testing.assert_array_equal(mesh.vertices[:4], big)
+    np.testing.assert_allclose(mesh.colors[:4], np.tile([0.8, 0.5, 0.4], (4, 1)), atol=1e-6)
+    np.testing.assert_allclose(mesh.colors[4:8], np.tile([0.9, 0.9, 1.0], (4, 1)), atol=1e-6)
+
+
+def test_load_mesh_glb_white_factor_or_texture_is_no_colour(tmp_path):
+    big = (np.array([[0, 0, 0], [20, 0, 0], [0, 20, 0], [0, 0, 20]]) + 0.0).astype(np.float32)
+    tri = np.array([0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3], dtype=np.uint32)
+    meshes = [
+        {"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]},
+        {"primitives": [{"attributes": {"POSITION": 2}, "indices": 3, "material": 1}]},
+    ]
+    materials = [
+        {"name": "plain", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]}},
+        {"name": "painted", "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.2, 0.2, 1],
+                                                      "baseColorTexture": {"index": 0}}},
+    ]  # fmt: skip
+    nodes = [{"name": "a", "mesh": 0}, {"name": "b", "mesh": 1}]
+    header, blob = gltf_header([big, tri, big + 30, tri], meshes, nodes, [0, 1], materials=materials)
+    path = tmp_path / "plain.glb"
+    path.write_bytes(glb_bytes(header, blob))
+    mesh = load_mesh(path, units="cm", check=False)
+    assert mesh.materials == {"a": Material("plain", None, 1.0), "b": Material("painted", None, 1.0)}
+    assert mesh.colors is None
 
 
 # --- loader errors --------------------------------------------------------------------------------

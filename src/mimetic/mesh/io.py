@@ -6,10 +6,12 @@ the vertices, in exactly the order, it was written with. What each format keeps:
 ========  =============  ==========  ===========================  ====================================
 format    vertex order   precision   parts                        colours / units
 ========  =============  ==========  ===========================  ====================================
-.obj      exact          float64     ``g`` groups (``o`` too)     ``v x y z r g b`` / ``# units: cm``
+.obj      exact          float64     ``g`` groups (``o`` too),    ``v x y z r g b``, ``.mtl`` ``Kd`` /
+                                     ``usemtl`` materials         ``# units: cm``
 .ply      exact          float64     not stored (merged)          uchar RGB / ``comment units cm``
-.glb      exact          float32     one node per part            COLOR_0 / mesh ``extras.units``
-.gltf     exact          float32     one node per part            COLOR_0 / mesh ``extras.units``
+.glb      exact          float32     one node per part            COLOR_0, ``baseColorFactor`` /
+                                                                  mesh ``extras.units``
+.gltf     exact          float32     one node per part            as .glb
 .stl      first use      float32     not stored (merged)          none / none
 ========  =============  ==========  ===========================  ====================================
 
@@ -21,6 +23,11 @@ triangles and quads comes back with the triangles first (trimesh's order, determ
 read and written by trimesh with processing off; node order comes from the file's own JSON,
 because trimesh's scene graph lists nodes in reverse. STL has no vertex indices at all: loading
 merges equal corners in order of first use.
+
+Materials are read, not written: an OBJ's ``usemtl`` materials (with their ``.mtl`` colour and
+opacity) and a multi-part glTF's primitive materials become ``Mesh.materials`` of the parts named
+after them, and their flat colours become ``Mesh.colors`` when they colour every face. Saving
+keeps those colours (as vertex colours) and parts, not the materials themselves.
 """
 
 from __future__ import annotations
@@ -41,7 +48,7 @@ import numpy as np
 
 from mimetic.atomic import atomic_write_bytes
 from mimetic.errors import MeshError, MimeticWarning
-from mimetic.mesh.model import Mesh
+from mimetic.mesh.model import Material, Mesh
 from mimetic.mesh.units import check_units, detect_units, largest_extent, units_for_extent
 from mimetic.mesh.validate import MIN_FACES
 
@@ -72,6 +79,7 @@ class _Loaded:
     parts: dict[str, np.ndarray] = field(default_factory=dict)
     colors: np.ndarray | None = None  # (n, 3) float32 in [0, 1]
     units: str | None = None  # as written in the file, not yet checked
+    materials: dict[str, Material] = field(default_factory=dict)  # part name -> its material
 
 
 # --- public API -----------------------------------------------------------------------------------
@@ -142,7 +150,7 @@ def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: 
                 detect_units(vertices)
             except MeshError as error:
                 raise MeshError(f"{src}: {error}") from None
-    mesh = Mesh(vertices, faces, loaded.parts, loaded.colors, units)
+    mesh = Mesh(vertices, faces, loaded.parts, loaded.colors, units, loaded.materials)
     log.info("loaded %s: %d vertices, %d faces, %d parts, units %s", src, n, m, len(mesh.parts), units)
     return mesh
 
@@ -308,18 +316,24 @@ _OBJ_KEYWORDS = frozenset(
 )
 _OBJ_V = re.compile(r"^[ \t]*v[ \t]+([^\n]*)", re.MULTILINE)
 _OBJ_F = re.compile(r"^[ \t]*f[ \t]+([^\n]*)", re.MULTILINE)
-_OBJ_OG = re.compile(r"^[ \t]*([og])(?:[ \t]+([^\n]*))?$", re.MULTILINE)
+_OBJ_OG = re.compile(r"^[ \t]*(usemtl|[og])(?:[ \t]+([^\n]*))?$", re.MULTILINE)
+_OBJ_MTLLIB = re.compile(r"^[ \t]*mtllib[ \t]+([^\n]*?)[ \t]*$", re.MULTILINE)
 _OBJ_UNITS = re.compile(r"^[ \t]*#[ \t]*units[ \t]*[:=][ \t]*(\S+)[ \t]*$", re.MULTILINE | re.IGNORECASE)
 _AFTER_SLASH = re.compile(r"/\S*")
 
 
 def _read_obj(data: bytes, src: str, path: Path) -> _Loaded:
-    """Parse a Wavefront OBJ: ``v`` (optionally with r g b), ``f`` (any polygon), ``o`` and ``g``.
+    """Parse a Wavefront OBJ: ``v`` (optionally with r g b), ``f`` (any polygon), ``o``, ``g``,
+    ``usemtl`` and ``mtllib``.
 
     A face's part is its current ``g`` group(s) (``g a b`` puts it in both), else its current ``o``
-    object; a new ``o`` ends the current groups and a bare ``g`` ends them too. ``vt``, ``vn``,
-    materials and free-form geometry are ignored. Lines are found with regular expressions and
-    numbers parsed with ``np.loadtxt``, so there is no Python loop over lines.
+    object; a new ``o`` ends the current groups and a bare ``g`` ends them too. Each material named
+    by ``usemtl`` is a part too (named ``<material>_material`` when a group of other faces already
+    has its name), with its colour and opacity from the ``.mtl`` files of ``mtllib`` beside the OBJ
+    (see ``_read_mtl``); a missing ``.mtl`` warns. When the file has no vertex colours and every
+    face's material has a colour, ``colors`` holds them (the mean of the faces around each vertex).
+    ``vt``, ``vn``, textures and free-form geometry are ignored. Lines are found with regular
+    expressions and numbers parsed with ``np.loadtxt``, so there is no Python loop over lines.
     """
     if b"\x00" in data[:8192]:
         raise MeshError(
@@ -329,26 +343,31 @@ def _read_obj(data: bytes, src: str, path: Path) -> _Loaded:
     text = text.replace("\\\n", " ")  # line continuation
     v_rows = _OBJ_V.findall(text)
 
-    # Split the text at o/g lines (few); each segment's faces share one part key.
+    # Split the text at o/g/usemtl lines (few); each segment's faces share one part key and material.
     keys: dict[tuple[str, ...], int] = {(): 0}
+    material_ids: dict[str, int] = {}
     obj: str | None = None
     groups: tuple[str, ...] = ()
-    bounds, seg_keys = [0], [0]
+    material = -1
+    bounds, seg_keys, seg_materials = [0], [0], [-1]
     for match in _OBJ_OG.finditer(text):
         head, rest = match.group(1), (match.group(2) or "").strip()
         if head == "o":
             obj, groups = rest or None, ()
-        else:
+        elif head == "g":
             groups = tuple(rest.split())
+        else:
+            material = material_ids.setdefault(rest, len(material_ids)) if rest else -1
         bounds.append(match.start())
         seg_keys.append(keys.setdefault(groups or ((obj,) if obj else ()), len(keys)))
+        seg_materials.append(material)
     bounds.append(len(text))
     f_rows: list[str] = []
     f_key: list[np.ndarray] = []
-    for lo, hi, key_id in zip(bounds, bounds[1:], seg_keys, strict=False):
+    for lo, hi, key_id, mat in zip(bounds, bounds[1:], seg_keys, seg_materials, strict=False):
         rows = _OBJ_F.findall(text, lo, hi)
         f_rows += rows
-        f_key.append(np.full(len(rows), key_id, dtype=np.int64))
+        f_key.append(np.tile(np.array([key_id, mat], dtype=np.int64), (len(rows), 1)))
 
     if not v_rows and not f_rows:
         for lineno, line in enumerate(text.splitlines(), 1):
@@ -363,6 +382,7 @@ def _read_obj(data: bytes, src: str, path: Path) -> _Loaded:
         )
     vertices, colors = _obj_vertices(v_rows, src, text)
     faces, tri_key = _obj_faces(f_rows, np.concatenate(f_key), len(vertices), src, text)
+    tri_key, tri_material = tri_key.reshape(-1, 2).T
 
     members: dict[str, list[np.ndarray]] = {}
     for key, kid in keys.items():
@@ -371,9 +391,120 @@ def _read_obj(data: bytes, src: str, path: Path) -> _Loaded:
             for name in key:
                 members.setdefault(name, []).append(ids)
     parts = {name: np.sort(np.concatenate(ids)) for name, ids in members.items()}
+    materials: dict[str, Material] = {}
+    if material_ids:
+        library = _obj_material_library(text, src, path)
+        face_color = np.full((len(faces), 3), np.nan)
+        see_through = np.zeros(len(faces), dtype=bool)
+        for name, mid in material_ids.items():
+            ids = np.flatnonzero(tri_material == mid)
+            if not len(ids):
+                continue
+            part = name if name not in parts or np.array_equal(parts[name], ids) else f"{name}_material"
+            parts[part] = ids
+            found = library.get(name)
+            if found is not None:
+                materials[part] = found
+                see_through[ids] = found.transparent
+                if found.color is not None:
+                    face_color[ids] = found.color
+        if colors is None and np.isfinite(face_color[~see_through]).all():
+            colors = _face_to_vertex_colors(faces, face_color, see_through, len(vertices))
     parts = dict(sorted(parts.items(), key=lambda item: int(item[1][0])))
     units = match.group(1) if (match := _OBJ_UNITS.search(text)) else None
-    return _Loaded(vertices, faces, parts, colors, units)
+    return _Loaded(vertices, faces, parts, colors, units, materials)
+
+
+_DEFAULT_MATERIAL = re.compile(
+    r"^(default[\w ]*|material|none|lambert1|initialshadinggroup)([._]\d+)?$", re.IGNORECASE
+)
+"""Names modelling tools give the material of an untouched mesh (Blender "Material", Maya
+"lambert1", "default"): their placeholder grey or white says nothing about the surface."""
+
+
+def _face_to_vertex_colors(
+    faces: np.ndarray, face_color: np.ndarray, see_through: np.ndarray, n: int
+) -> np.ndarray:
+    """Per-vertex colours (n, 3) float32 from face colours (m, 3) (NaN: none): the mean colour of the
+    opaque coloured faces around each vertex, else of the see-through (m,) bool ones, else
+    ``DEFAULT_COLOR``."""
+    out = np.full((n, 3), DEFAULT_COLOR)
+    done = np.zeros(n, dtype=bool)
+    coloured = np.isfinite(face_color).all(axis=1)
+    for use in (coloured & ~see_through, coloured & see_through):
+        total = np.zeros((n, 3))
+        count = np.zeros(n)
+        for k in range(3):
+            np.add.at(total, faces[use, k], face_color[use])
+            np.add.at(count, faces[use, k], 1.0)
+        fill = (count > 0) & ~done
+        out[fill] = total[fill] / count[fill, None]
+        done |= fill
+    return np.clip(out, 0.0, 1.0).astype(np.float32)
+
+
+def _obj_material_library(text: str, src: str, path: Path) -> dict[str, Material]:
+    """The materials of every ``mtllib`` of an OBJ, by name; a missing or unreadable .mtl warns."""
+    library: dict[str, Material] = {}
+    names = [m.group(1) for m in _OBJ_MTLLIB.finditer(text)]
+    if not names:
+        log.info("%s: uses materials but names no material library (mtllib)", src)
+    for name in names:
+        candidates = [name] if (path.parent / name).is_file() else name.split()
+        for file in candidates:
+            mtl = path.parent / file
+            try:
+                library.update(_read_mtl(mtl.read_text(encoding="utf-8", errors="replace"), str(mtl)))
+            except OSError as error:
+                warnings.warn(
+                    f"{src}: cannot read its material library {file!r} (looked in {path.absolute().parent}: "
+                    f"{error.strerror or error}); its parts load without material colours or opacity. Put "
+                    "the .mtl file beside the OBJ to use them.",
+                    MimeticWarning,
+                    stacklevel=4,
+                )
+    return library
+
+
+def _read_mtl(text: str, src: str) -> dict[str, Material]:
+    """Materials of a Wavefront .mtl file: ``Kd`` colour and ``d`` opacity (else ``1 - Tr``).
+
+    A material with a ``map_Kd`` texture, or with a placeholder name (see ``_DEFAULT_MATERIAL``),
+    gets no colour: its ``Kd`` only tints a texture mimetic does not read, or is a tool's default.
+    Unreadable statements are skipped.
+    """
+    found: dict[str, dict[str, object]] = {}
+    current: dict[str, object] | None = None
+    for line in text.splitlines():
+        words = line.split("#", 1)[0].split()
+        if not words:
+            continue
+        head, args = words[0].lower(), words[1:]
+        if head == "newmtl":
+            current = found.setdefault(" ".join(args), {})
+        elif current is None:
+            continue
+        elif head == "map_kd":
+            current["texture"] = True
+        elif head in ("kd", "d", "tr"):
+            numbers = [a for a in args if not a.startswith("-")]  # 'd -halo 0.5'
+            try:
+                values = [float(a) for a in numbers[: 3 if head == "kd" else 1]]
+            except ValueError:
+                log.info("%s: skipping unreadable %r", src, line.strip())
+                continue
+            if head == "kd" and len(values) == 3:
+                current["kd"] = tuple(float(np.clip(v, 0.0, 1.0)) for v in values)
+            elif head != "kd" and values:
+                current[head] = float(np.clip(values[0], 0.0, 1.0))
+    materials = {}
+    for name, spec in found.items():
+        opacity = spec["d"] if "d" in spec else 1.0 - spec["tr"] if "tr" in spec else 1.0
+        color = spec.get("kd")
+        if spec.get("texture") or _DEFAULT_MATERIAL.match(name):
+            color = None
+        materials[name] = Material(name, color, opacity)  # type: ignore[arg-type]
+    return materials
 
 
 def _line_of(text: str, pattern: re.Pattern, k: int) -> int:
@@ -800,12 +931,15 @@ def _gltf_to_loaded(scene, header: dict, plan: dict[str, _Piece], src: str) -> _
 
     meshes, nodes = header.get("meshes", []), header.get("nodes", [])
     materials = header.get("materials", [])
-    vertices, faces, colors, names = [], [], [], []
+    vertices, faces, colors, names, piece_materials = [], [], [], [], []
+    factors: list[tuple[float, float, float] | None] = []  # flat colour of each vertex block
     shared: dict[tuple[int, int], int] = {}  # (node, POSITION accessor) -> vertex offset
     n = 0
     any_color = False
     for _, b, j, piece, transform, geometry in found:
         primitive = meshes[piece.mesh]["primitives"][j]
+        material = _gltf_material(materials, primitive.get("material"))
+        piece_materials.append(material)
         f = np.asarray(geometry.faces, dtype=np.int64)
         linear = transform[:3, :3]
         if np.linalg.det(linear) < 0:  # mirrored: keep faces outward
@@ -821,22 +955,36 @@ def _gltf_to_loaded(scene, header: dict, plan: dict[str, _Piece], src: str) -> _
             faces.append(f + n)
             vertices.append(v)
             c = _trimesh_colors(geometry)
+            factor = None if material is None else material.color
+            if c is not None and factor is not None:  # glTF: COLOR_0 times baseColorFactor
+                c = (c * np.float32(factor)).astype(np.float32)
             any_color |= c is not None
-            colors.append(c if c is not None else np.full((len(v), 3), DEFAULT_COLOR, np.float32))
+            colors.append(c)
+            factors.append(factor)
             n += len(v)
         names.append(_piece_name(nodes[b], meshes[piece.mesh], primitive, j, b, materials))
 
     all_faces = np.concatenate(faces)
     parts: dict[str, np.ndarray] = {}
+    part_materials: dict[str, Material] = {}
     if len(found) > 1:
         offsets = np.cumsum([0] + [len(f) for f in faces])
-        for name, lo, hi in zip(names, offsets, offsets[1:], strict=False):
+        for name, lo, hi, material in zip(names, offsets, offsets[1:], piece_materials, strict=False):
             unique = name
             k = 1
             while unique in parts:
                 k += 1
                 unique = f"{name}_{k}"
             parts[unique] = np.arange(lo, hi)
+            if material is not None:
+                part_materials[unique] = material
+    if any_color or all(factor is not None for factor in factors):
+        # vertex colours, else every block's flat colour; a block with neither is grey
+        colors = [
+            c if c is not None else np.full((len(v), 3), DEFAULT_COLOR if k is None else k, np.float32)
+            for c, k, v in zip(colors, factors, vertices, strict=True)
+        ]
+        any_color = True
     units = next(
         (
             m["extras"]["units"]
@@ -846,8 +994,45 @@ def _gltf_to_loaded(scene, header: dict, plan: dict[str, _Piece], src: str) -> _
         None,
     )
     return _Loaded(
-        np.concatenate(vertices), all_faces, parts, np.concatenate(colors) if any_color else None, units
+        np.concatenate(vertices),
+        all_faces,
+        parts,
+        np.concatenate(colors) if any_color else None,
+        units,
+        part_materials,
     )
+
+
+def _gltf_material(materials: list, index) -> Material | None:
+    """The ``Material`` of a glTF primitive's ``material`` index, or None when it has none.
+
+    The colour is ``pbrMetallicRoughness.baseColorFactor`` when the file states one, it is not
+    plain white (the default, which only passes a texture or vertex colours through) and there is
+    no ``baseColorTexture``. Opacity follows ``alphaMode``: OPAQUE (the default) 1; MASK 1 or 0 by
+    the factor's alpha against ``alphaCutoff``; BLEND the factor's alpha.
+    """
+    if (
+        not isinstance(index, int)
+        or not 0 <= index < len(materials)
+        or not isinstance(materials[index], dict)
+    ):
+        return None
+    spec = materials[index]
+    name = spec.get("name") if isinstance(spec.get("name"), str) else None
+    pbr = spec.get("pbrMetallicRoughness") if isinstance(spec.get("pbrMetallicRoughness"), dict) else {}
+    try:
+        factor = np.clip(np.asarray(pbr.get("baseColorFactor", [1, 1, 1, 1]), dtype=np.float64), 0, 1)
+        factor = factor.reshape(4) if np.all(np.isfinite(factor)) else np.ones(4)
+        cutoff = float(spec.get("alphaCutoff", 0.5))
+    except (TypeError, ValueError):
+        factor, cutoff = np.ones(4), 0.5
+    color = None
+    if "baseColorTexture" not in pbr and not np.all(factor[:3] == 1.0):
+        if not (name and _DEFAULT_MATERIAL.match(name)):
+            color = (float(factor[0]), float(factor[1]), float(factor[2]))
+    mode = spec.get("alphaMode", "OPAQUE")
+    opacity = float(factor[3]) if mode == "BLEND" else float(factor[3] >= cutoff) if mode == "MASK" else 1.0
+    return Material(name, color, opacity)
 
 
 def _piece_name(node: dict, mesh: dict, primitive: dict, j: int, b: int, materials: list) -> str:

@@ -1,4 +1,4 @@
-"""The ``Mesh`` and ``SurfacePoint`` data types.
+"""The ``Mesh``, ``Material`` and ``SurfacePoint`` data types.
 
 A ``Mesh`` is a triangle soup with a fixed vertex order: nothing in mimetic reorders, merges
 or drops vertices, because every rig element refers to them by index.
@@ -19,6 +19,48 @@ def _frozen(array: np.ndarray) -> np.ndarray:
     return array
 
 
+TRANSPARENT_BELOW = 0.5
+"""A material with opacity below this is a see-through layer (a tear film, an eye occlusion shell)."""
+
+
+@dataclass(frozen=True)
+class Material:
+    """How a part's surface looks, as its file states it (an OBJ ``.mtl`` entry, a glTF material).
+
+    Attributes
+    ----------
+    name : str, optional
+        The material's name in the file (e.g. "M_EyeLashes"), which often says what a part is.
+    color : (r, g, b) floats in [0, 1], optional
+        The flat diffuse colour (``Kd``, ``baseColorFactor``); None when the file gives none, or
+        only a texture, which mimetic does not read.
+    opacity : float in [0, 1]
+        1 is opaque (``d``, ``1 - Tr``, glTF alpha).
+    """
+
+    name: str | None = None
+    color: tuple[float, float, float] | None = None
+    opacity: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.color is not None:
+            rgb = tuple(float(c) for c in np.asarray(self.color, dtype=np.float64).reshape(-1))
+            if len(rgb) != 3 or not all(0.0 <= c <= 1.0 for c in rgb):
+                raise ValueError(
+                    f"material {self.name!r}: color must be 3 numbers in [0, 1]; got {self.color!r}"
+                )
+            object.__setattr__(self, "color", rgb)
+        opacity = float(self.opacity)
+        if not 0.0 <= opacity <= 1.0:
+            raise ValueError(f"material {self.name!r}: opacity={self.opacity} must be in [0, 1]")
+        object.__setattr__(self, "opacity", opacity)
+
+    @property
+    def transparent(self) -> bool:
+        """Whether the surface is mostly see-through (opacity below ``TRANSPARENT_BELOW``)."""
+        return self.opacity < TRANSPARENT_BELOW
+
+
 @dataclass(frozen=True, eq=False)
 class Mesh:
     """A triangle mesh with named parts.
@@ -36,6 +78,10 @@ class Mesh:
         Per-vertex albedo (e.g. the iris and pupil of an eyeball).
     units : str, optional
         "mm", "cm", "dm" or "m" when known.
+    materials : Mapping[str, Material]
+        Part name → the material its faces use in the source file (colour, opacity, name), for
+        the parts a file names after its materials; empty when the file has none. Every key is a
+        part. ``colors`` already holds the materials' colours when the file coloured every face.
     """
 
     vertices: np.ndarray
@@ -43,6 +89,7 @@ class Mesh:
     parts: Mapping[str, np.ndarray] = field(default_factory=dict)
     colors: np.ndarray | None = None
     units: str | None = None
+    materials: Mapping[str, Material] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         vertices = np.asarray(self.vertices, dtype=np.float64)
@@ -62,6 +109,13 @@ class Mesh:
             if colors.shape != vertices.shape:
                 raise ValueError(f"colors must have shape {vertices.shape}; got {colors.shape}")
             object.__setattr__(self, "colors", _frozen(colors))
+        materials = dict(self.materials)
+        for name, material in materials.items():
+            if name not in parts:
+                raise ValueError(f"material of part {name!r}, which is not a part; parts are {sorted(parts)}")
+            if not isinstance(material, Material):
+                raise ValueError(f"materials[{name!r}] must be a Material; got {type(material).__name__}")
+        object.__setattr__(self, "materials", MappingProxyType(materials))
 
     @property
     def n_vertices(self) -> int:
@@ -72,11 +126,11 @@ class Mesh:
         return len(self.faces)
 
     def with_vertices(self, vertices: np.ndarray) -> Mesh:
-        """The same mesh (faces, parts, colours, units) with new vertex positions (n, 3)."""
+        """The same mesh (faces, parts, colours, units, materials) with new vertex positions (n, 3)."""
         vertices = np.asarray(vertices, dtype=np.float64)
         if vertices.shape != self.vertices.shape:
             raise ValueError(f"expected vertices of shape {self.vertices.shape}; got {vertices.shape}")
-        return Mesh(vertices, self.faces, self.parts, self.colors, self.units)
+        return Mesh(vertices, self.faces, self.parts, self.colors, self.units, self.materials)
 
     def part_vertices(self, name: str) -> np.ndarray:
         """Sorted indices (k,) int64 of the vertices used by the faces of part ``name``."""
