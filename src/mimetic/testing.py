@@ -10,6 +10,9 @@ and the same instance may be handed to many tests or benchmark cases:
 * ``small_rig(seed)``: the recipe's rig of ``small_head(seed)``;
 * ``capped_skin(head)``: the head's skin with its eye and mouth openings closed, for
   inside/outside tests;
+* ``unwelded_patch(mesh, centre)``, ``triangle_soup(mesh)``, ``patch_faces(mesh, centre, r)``,
+  ``cheek_centre(head)``: messy versions of a clean mesh, as real exports leave them;
+* ``head_landmarks(head)``: a generated head's landmarks as a user's file gives them;
 * ``shared_data_dir()``, ``require_shared_data(path)``, ``load_ict(folder)``,
   ``ict_landmarks(mesh, meta)``: the real data beside the repository (``../shared/data``, or
   ``$MIMETIC_SHARED_DATA``), for tests, benchmarks and ``examples/``;
@@ -139,6 +142,58 @@ def capped_skin(head: Head) -> Mesh:
         faces.append(np.column_stack([np.roll(loop, -1), loop, np.full(len(loop), n)]))
         n += 1
     return Mesh(np.concatenate(vertices), np.concatenate(faces))
+
+
+def head_landmarks(
+    head: Head, units: str = "cm", scale: float = 1.0, turn: np.ndarray | None = None
+) -> Landmarks:
+    """The landmarks a user would click on a generated head (no pupils, jaw contour or menton), as a
+    ``Landmarks`` file would give them: positions times ``scale``, turned by ``turn`` (3, 3)."""
+    from mimetic.fit.landmarks import Landmarks
+
+    names = tuple(n for n in head.landmarks if not n.startswith(("pupil", "jaw_")) and n != "menton")
+    points = scale * head.landmark_positions(list(names))
+    if turn is not None:
+        points = points @ np.asarray(turn).T
+    return Landmarks(names, points, np.ones(len(names)), units, "generated head")
+
+
+def cheek_centre(head: Head) -> np.ndarray:
+    """The centre (3,) of the head's left cheek region, in its units: where the messy-mesh cases cut."""
+    return head.mesh.vertices[head.regions["cheek_L"]].mean(axis=0)
+
+
+def patch_faces(mesh: Mesh, centre: np.ndarray, radius: float) -> np.ndarray:
+    """Sorted skin faces (k,) whose centroids lie within ``radius`` of ``centre`` (3,)."""
+    faces = mesh.parts["skin"] if "skin" in mesh.parts else np.arange(mesh.n_faces)
+    centroids = mesh.vertices[mesh.faces[faces]].mean(axis=1)
+    return np.sort(faces[np.linalg.norm(centroids - centre, axis=1) < radius])
+
+
+def unwelded_patch(mesh: Mesh, centre: np.ndarray, radius: float = 2.0) -> Mesh:
+    """``mesh`` with a patch of skin around ``centre`` cut loose: the patch's faces take their own copies
+    of the vertices on its border (appended after the mesh's vertices), so the border is an unwelded
+    seam, as an export that splits a UV island leaves it. Vertex order before the copies is kept."""
+    patch = patch_faces(mesh, centre, radius)
+    inside = np.zeros(mesh.n_faces, dtype=bool)
+    inside[patch] = True
+    border = np.intersect1d(np.unique(mesh.faces[patch]), np.unique(mesh.faces[~inside]))
+    copy = np.full(mesh.n_vertices, -1)
+    copy[border] = mesh.n_vertices + np.arange(len(border))
+    faces = mesh.faces.copy()
+    cut = faces[patch]
+    faces[patch] = np.where(copy[cut] >= 0, copy[cut], cut)
+    colors = None if mesh.colors is None else np.concatenate([mesh.colors, mesh.colors[border]])
+    vertices = np.concatenate([mesh.vertices, mesh.vertices[border]])
+    return Mesh(vertices, faces, mesh.parts, colors, mesh.units)
+
+
+def triangle_soup(mesh: Mesh) -> Mesh:
+    """Every face of ``mesh`` with three vertices of its own (3m vertices, face k uses 3k..3k+2), as some
+    exporters write STL; parts kept by face."""
+    vertices = mesh.vertices[mesh.faces.ravel()]
+    colors = None if mesh.colors is None else mesh.colors[mesh.faces.ravel()]
+    return Mesh(vertices, np.arange(len(vertices)).reshape(-1, 3), mesh.parts, colors, mesh.units)
 
 
 SHARED_DATA_ENV = "MIMETIC_SHARED_DATA"

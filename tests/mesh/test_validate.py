@@ -10,7 +10,8 @@ import pytest
 
 from mimetic.errors import MeshError
 from mimetic.mesh.model import Mesh
-from mimetic.mesh.validate import MANY_COMPONENTS, MeshReport, validate_mesh
+from mimetic.mesh.validate import MeshReport, validate_mesh
+from mimetic.testing import cheek_centre, patch_faces, small_head, unwelded_patch
 
 
 def counts(report: MeshReport) -> dict[str, int]:
@@ -32,6 +33,8 @@ def test_validate_mesh_tetrahedron_is_closed_single_component(tetrahedron):
         n_boundary_chains=0,
         n_components=1,
         n_unused_vertices=0,
+        n_seam_vertices=0,
+        n_reversed_faces=0,
     )
     assert report.ok
     assert report.errors == ()
@@ -136,14 +139,55 @@ def test_validate_mesh_part_with_missing_face_is_error(tetrahedron):
     assert any("part 'skin'" in e for e in report.errors)
 
 
-def test_validate_mesh_triangle_soup_warns_about_many_components():
+def test_validate_mesh_scattered_triangles_are_pieces_not_seams():
     rng = np.random.default_rng(5)
-    n_tri = MANY_COMPONENTS + 4
-    vertices = rng.random((3 * n_tri, 3)) * 20
-    report = validate_mesh(Mesh(vertices, np.arange(3 * n_tri).reshape(-1, 3)))
-    assert report.n_components == n_tri
-    assert report.n_boundary_loops == n_tri
-    assert any("Merge by Distance" in w for w in report.warnings)
+    vertices = rng.random((60, 3)) * 20
+    report = validate_mesh(Mesh(vertices, np.arange(60).reshape(-1, 3)))
+    assert report.n_components == report.n_boundary_loops == 20
+    assert report.n_seam_vertices == 0 and not any("seam" in w for w in report.warnings)
+
+
+def test_validate_mesh_triangle_soup_names_its_seams():
+    head = small_head()
+    skin, _ = head.mesh.submesh("skin")
+    soup = Mesh(skin.vertices[skin.faces.ravel()], np.arange(3 * skin.n_faces).reshape(-1, 3))
+    report = validate_mesh(soup)
+    assert report.n_seam_vertices == soup.n_vertices  # every corner lies on another face's corner
+    (warning,) = [w for w in report.warnings if "unwelded seams" in w]
+    assert (
+        f"{soup.n_vertices:,} vertices" in warning
+        and "around (" in warning
+        and "Merge by Distance" in warning
+    )
+
+
+def test_validate_mesh_unwelded_patch_is_counted_and_located():
+    head = small_head()
+    mesh = unwelded_patch(head.mesh, cheek_centre(head))
+    report = validate_mesh(mesh)
+    border = mesh.n_vertices - head.mesh.n_vertices  # the patch's border vertices were duplicated
+    assert report.n_seam_vertices == 2 * border
+    (warning,) = [w for w in report.warnings if "unwelded seams" in w]
+    centre = np.array([float(x) for x in warning.split("around (")[1].split(")")[0].split(",")])
+    assert np.linalg.norm(centre - cheek_centre(head)) < 2.0  # cm: the warning says where the seam is
+
+
+def test_validate_mesh_clean_heads_have_no_seams_or_reversed_faces():
+    for mesh in (small_head().mesh, small_head(3).mesh):
+        report = validate_mesh(mesh)
+        assert report.n_seam_vertices == report.n_reversed_faces == 0
+        assert report.warnings == ()
+
+
+def test_validate_mesh_reports_a_reversed_patch_with_its_count():
+    head = small_head()
+    faces = head.mesh.faces.copy()
+    patch = patch_faces(head.mesh, cheek_centre(head), 2.0)
+    faces[patch] = faces[patch, ::-1]
+    report = validate_mesh(Mesh(head.mesh.vertices, faces, head.mesh.parts))
+    assert report.n_reversed_faces == len(patch)
+    (warning,) = [w for w in report.warnings if "wind against" in w]
+    assert f"{len(patch):,} faces" in warning and "[skin]" in warning
 
 
 def test_validate_mesh_declared_units_disagreeing_with_size_warn(tetrahedron):

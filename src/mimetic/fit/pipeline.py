@@ -1,14 +1,18 @@
 """``rig_head``: a user's head mesh and its landmarks in, a ``Rig`` on the user's own vertices out.
 
-The steps: check the mesh and its units; fit the reference (conformation and similarity from
-the landmarks, a winding check (a mirrored export has its faces turned inside out: they are
-turned back, with a warning), then non-rigid registration, ``fit.reference``); report the fit
-and gate it (``fit.report``); rebuild the rig recipe on the fitted reference
-(``rig.recipe.build_rig``); transfer it to the user's vertices (``fit.transfer``).
+The steps: check the mesh and its units; merge its unwelded seams (coincident vertices on open
+borders, ``mesh.weld``: UV seams, an unwelded patch, a triangle soup), with a warning that says how
+many; fit the reference to the welded mesh (conformation and similarity from the landmarks, a
+winding check (a mirrored export has its faces turned inside out: they are turned back, with a
+warning), then non-rigid registration, ``fit.reference``); report the fit and gate it
+(``fit.report``); rebuild the rig recipe on the fitted reference (``rig.recipe.build_rig``);
+transfer it to the welded vertices (``fit.transfer``) and move it back onto the user's own vertices
+(``rig.weld.unweld_rig``: every copy of a merged vertex takes the same data).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,8 +28,11 @@ from mimetic.head.model import DEFAULT_RESOLUTION
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import convert_units, detect_units
 from mimetic.mesh.validate import validate_mesh
+from mimetic.mesh.weld import Weld, find_weld, seam_vertices
+from mimetic.mesh.winding import winding_flips
 from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
+from mimetic.rig.weld import unweld_rig
 
 MAX_VERTICES = 2_000_000
 
@@ -45,12 +52,19 @@ class RigResult:
         The fitted reference (reference frame), for inspection and pictures.
     flipped : bool
         True when the user's faces wound inward and were turned (the rig's faces are turned too).
+    welded : int
+        How many of the user's vertices lay on another one along an open border (merged for the fit;
+        the rig keeps every one of them, moving together): unwelded seams, and parts that meet.
+    reversed_faces : int
+        Faces that wound against their neighbours and were turned in the rig.
     """
 
     rig: Rig
     report: FitReport
     fit: ReferenceFit
     flipped: bool
+    welded: int = 0
+    reversed_faces: int = 0
 
 
 def _checked_mesh(mesh: Mesh) -> Mesh:
@@ -113,8 +127,29 @@ def rig_head(
     points = landmarks.positions
     if landmarks.units is not None and landmarks.units != mesh.units:
         points = convert_units(points, landmarks.units, mesh.units)
+    weld = find_weld(mesh)
+    seams = len(seam_vertices(mesh)) if weld.n_merged else 0
+    if seams:
+        warnings.warn(
+            f"{seams:,} vertices lie on unwelded seams (UV seams, an unwelded patch or a triangle soup); "
+            "they are welded for the fit and move together in every pose. Your vertex order and count "
+            "are kept.",
+            MimeticWarning,
+            stacklevel=2,
+        )
+    faces = mesh.faces.copy()  # the user's faces as the rig will have them
+    reversed_faces = winding_flips(weld.mesh.vertices, weld.mesh.faces)
+    if reversed_faces.any():
+        warnings.warn(
+            f"{int(reversed_faces.sum()):,} faces wind against their neighbours (a patch turned inside out, "
+            "dark in renders); the rig uses them turned back",
+            MimeticWarning,
+            stacklevel=2,
+        )
+        weld = _turned(weld, reversed_faces)
+        faces[weld.faces[reversed_faces]] = faces[weld.faces[reversed_faces], ::-1]
     fit = fit_reference(
-        mesh,
+        weld.mesh,
         list(landmarks.names),
         points,
         landmark_weights=np.maximum(landmarks.confidence, 0.05),
@@ -129,9 +164,8 @@ def rig_head(
             MimeticWarning,
             stacklevel=2,
         )
-        mesh = Mesh(
-            mesh.vertices, mesh.faces[:, ::-1], parts=mesh.parts, colors=mesh.colors, units=mesh.units
-        )
+        weld = _turned(weld, np.ones(weld.mesh.n_faces, dtype=bool))
+        faces = faces[:, ::-1]
     report = fit_report(fit, mesh.units)
     if not report.accepted and not force:
         raise MeshError(
@@ -142,9 +176,9 @@ def rig_head(
     if progress is not None:
         progress("rig", 0, 1)
     reference_rig = build_rig(fit.head)
-    rig = transfer_rig(
+    welded_rig = transfer_rig(
         reference_rig,
-        mesh,
+        weld.mesh,
         fit.conformation.to_model,
         metadata={
             "landmarks": landmarks.source,
@@ -157,9 +191,21 @@ def rig_head(
             "params": report.params,
             "resolution": resolution,
             "flipped_winding": flipped,
+            "welded_vertices": weld.n_merged,
+            "reversed_faces": int(reversed_faces.sum()),
             **(metadata or {}),
         },
     )
+    turn = welded_rig.source_rotation.T  # user frame -> rig frame, as transfer_rig turned the vertices
+    user = dataclasses.replace(mesh, vertices=mesh.vertices @ turn.T, faces=faces)
+    rig = unweld_rig(welded_rig, weld, user) if weld.n_merged else welded_rig
     if progress is not None:
         progress("rig", 1, 1)
-    return RigResult(rig, report, fit, flipped)
+    return RigResult(rig, report, fit, flipped, weld.n_merged, int(reversed_faces.sum()))
+
+
+def _turned(weld: Weld, mask: np.ndarray) -> Weld:
+    """``weld`` with the welded faces of ``mask`` (f,) bool wound the other way."""
+    faces = weld.mesh.faces.copy()
+    faces[mask] = faces[mask, ::-1]
+    return dataclasses.replace(weld, mesh=dataclasses.replace(weld.mesh, faces=faces))

@@ -21,14 +21,16 @@ from mimetic.errors import MeshError
 from mimetic.mesh.geometry import _boundary_counts, _edge_components, edges_with_counts
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import PLAUSIBLE_EXTENT_M, units_for_extent
+from mimetic.mesh.weld import coincident_groups, seam_vertices
+from mimetic.mesh.winding import winding_flips
 
 log = logging.getLogger(__name__)
 
 MIN_FACES = 4
 """Fewer faces than this is an error: a closed surface needs at least four triangles."""
 
-MANY_COMPONENTS = 16
-"""More connected components than this earns a warning (a head has a handful: skin, eyes, teeth)."""
+WHERE_CLUSTERS = 3
+"""How many places a warning about seams or reversed faces names (the largest first)."""
 
 DEGENERATE_AREA_REL = 1e-12
 """A face is degenerate when twice its area is at most this times its longest edge squared."""
@@ -60,6 +62,16 @@ class MeshReport:
         Connected pieces, joined through shared vertices; unused vertices are not counted.
     n_unused_vertices : int
         Vertices no face refers to.
+    n_seam_vertices : int
+        Vertices on unwelded seams: border edges that lie on other border edges of the same part
+        (of the whole mesh, when it has no parts) without sharing their vertices, as UV seams, an
+        unwelded patch or a triangle soup leave them, where the welded surface holds at least
+        ``SEAM_AREA_SHARE`` of the area. Parts meeting along a border, and small pieces touching
+        (eyelash cards at their roots), do not count. ``rig_head`` and the engines weld every
+        coincident border (``mimetic.mesh.weld``).
+    n_reversed_faces : int
+        Faces wound against their neighbours (the smaller side of each piece): a patch turned
+        inside out. ``rig_head`` turns them back (``mimetic.mesh.winding``).
     bbox_min, bbox_max : (3,) tuple of float, or None
         Bounding box of the finite vertices; None when there are none.
     extent : float or None
@@ -87,6 +99,8 @@ class MeshReport:
     n_boundary_chains: int
     n_components: int
     n_unused_vertices: int
+    n_seam_vertices: int
+    n_reversed_faces: int
     bbox_min: tuple[float, float, float] | None
     bbox_max: tuple[float, float, float] | None
     extent: float | None
@@ -133,7 +147,7 @@ class MeshReport:
         out = [
             f"vertices          {self.n_vertices:,}",
             f"faces             {self.n_faces:,}",
-            f"components        {self.n_components:,}",
+            f"components        {self.n_components:,} (connected pieces)",
             f"boundary loops    {self.n_boundary_loops:,}"
             + (f" (+{self.n_boundary_chains} open chains)" if self.n_boundary_chains else ""),
         ]
@@ -227,9 +241,19 @@ def validate_mesh(mesh: Mesh) -> MeshReport:
         n_boundary_chains=n_chains,
         n_components=n_components,
         n_unused_vertices=int(n - used.sum()),
+        n_seam_vertices=0,
+        n_reversed_faces=0,
     )
     errors = _errors(mesh, counts)
-    warnings = _warnings(mesh, counts, extent, detected)
+    places: dict[str, str] = {}
+    if not errors:  # seams and winding need finite coordinates and valid faces
+        seam = seam_vertices(mesh)
+        flips = winding_flips(v, f)
+        counts["n_seam_vertices"] = len(seam)
+        counts["n_reversed_faces"] = int(flips.sum())
+        places["seam"] = _where(mesh, v[seam])
+        places["reversed"] = _where(mesh, v[f[flips]].mean(axis=1), np.flatnonzero(flips))
+    warnings = _warnings(mesh, counts, extent, detected, places)
     report = MeshReport(
         **counts,
         bbox_min=bbox_min,
@@ -293,7 +317,29 @@ def _errors(mesh: Mesh, c: dict[str, int]) -> list[str]:
     return out
 
 
-def _warnings(mesh: Mesh, c: dict[str, int], extent: float | None, detected: str | None) -> list[str]:
+def _where(mesh: Mesh, points: np.ndarray, faces: np.ndarray | None = None) -> str:
+    """Where ``points`` (k, 3) are: the centres of their largest clusters (joined within 5 % of the
+    mesh's size) with their counts, and the parts of ``faces`` (k,) when given and named."""
+    if len(points) == 0:
+        return ""
+    size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
+    label = coincident_groups(points, np.arange(len(points)), 0.05 * size)
+    names, counts = np.unique(label, return_counts=True)
+    places = []
+    for k in np.argsort(-counts, kind="stable")[:WHERE_CLUSTERS]:
+        centre = points[label == names[k]].mean(axis=0)
+        centre = np.round(centre / (1e-3 * size)) * (1e-3 * size) + 0.0  # no -0, no 1e-15 noise
+        places.append(f"{counts[k]:,} around ({', '.join(f'{x:.4g}' for x in centre)})")
+    text = "; ".join(places) + ("; …" if len(names) > WHERE_CLUSTERS else "")
+    if faces is not None and mesh.parts:
+        inside = [name for name, ids in mesh.parts.items() if np.isin(faces, ids).any()]
+        text += f" [{', '.join(inside)}]"
+    return text
+
+
+def _warnings(
+    mesh: Mesh, c: dict[str, int], extent: float | None, detected: str | None, places: dict[str, str]
+) -> list[str]:
     out = []
     if c["n_degenerate_faces"]:
         out.append(
@@ -316,10 +362,18 @@ def _warnings(mesh: Mesh, c: dict[str, int], extent: float | None, detected: str
             f"{c['n_boundary_chains']} boundary chains do not close into loops (around non-manifold edges); "
             "fix the non-manifold edges"
         )
-    if c["n_components"] > MANY_COMPONENTS:
+    if c["n_seam_vertices"]:
         out.append(
-            f"{c['n_components']} separate pieces; a head usually has a handful (skin, eyes, teeth). The "
-            "vertices may be unwelded: merge them (Blender: Mesh > Clean Up > Merge by Distance)"
+            f"{c['n_seam_vertices']:,} vertices lie on unwelded seams (open borders on top of each other, as "
+            f"UV seams, an unwelded patch or a triangle soup leave them): {places['seam']}. mimetic welds "
+            "them for fitting and deformation and keeps your vertex order and count; to weld them in the "
+            "file: Blender Mesh > Clean Up > Merge by Distance"
+        )
+    if c["n_reversed_faces"]:
+        out.append(
+            f"{c['n_reversed_faces']:,} faces wind against their neighbours (a patch turned inside out, "
+            f"dark in renders): {places['reversed']}. mimetic rig turns them back; to fix the file: "
+            "Blender Mesh > Normals > Recalculate Outside"
         )
     if c["n_unused_vertices"]:
         out.append(
