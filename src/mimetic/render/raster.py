@@ -23,6 +23,7 @@ import numpy as np
 from mimetic.errors import MeshError
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
+from mimetic.render.appearance import NOT_EYE, Surface, eye_albedo, surface
 from mimetic.render.camera import Camera, _size, clip_planes
 
 log = logging.getLogger(__name__)
@@ -114,17 +115,22 @@ def rasterize(
     wireframe: bool = False,
     albedo: tuple[float, float, float] = ALBEDO,
     background: tuple[float, float, float] = BACKGROUND,
+    look: Surface | None = None,
 ) -> np.ndarray:
     """Render ``mesh`` seen by ``camera`` on the CPU, like ``Renderer.render`` with ``msaa=0``.
 
     Parameters
     ----------
     mesh : Mesh
-        Smooth-shaded with area-weighted vertex normals; ``mesh.colors`` (n, 3) when present,
-        else ``albedo``.
+        Smooth-shaded with area-weighted vertex normals; drawn and coloured as ``look`` says.
     size : int or (width, height)
     wireframe : bool
         Darken a one-pixel line along every triangle edge.
+    look : Surface, optional
+        What to draw: ``appearance.surface(mesh, albedo)`` when omitted (``mesh.colors`` when
+        present, else ``albedo`` and the parts' material colours; see-through films left out;
+        eyeballs, lashes and teeth drawn as such). Pass one made at a rest pose to draw a deformed
+        mesh the same way.
 
     Returns
     -------
@@ -137,12 +143,15 @@ def rasterize(
     image[:] = to_uint8(background_rgb)
     if mesh.n_faces == 0:
         return image.reshape(h, w, 3)
+    look = look if look is not None else surface(mesh, albedo_rgb)
+    look.check(mesh)
+    faces = mesh.faces[look.faces]  # (m', 3) the faces drawn
 
     # 1. Vertices to view space, then to pixel coordinates (x right, y down).
     view = camera.view_matrix()
     rotation = view[:3, :3]
     p_view = mesh.vertices @ rotation.T + view[:3, 3]  # (n, 3)
-    n_view = vertex_normals(mesh.vertices, mesh.faces) @ rotation.T  # (n, 3)
+    n_view = vertex_normals(mesh.vertices, faces) @ rotation.T  # (n, 3)
     depth = -p_view[:, 2]  # (n,)
     near, _ = clip_planes(camera, mesh.vertices)
     f = 1.0 / math.tan(math.radians(camera.fov_y_deg) / 2)
@@ -152,7 +161,6 @@ def rasterize(
         inv_depth = 1.0 / depth  # (n,)
 
     # 2. Triangles in front of the near plane with a non-empty pixel bounding box.
-    faces = mesh.faces
     tri = np.flatnonzero((depth[faces] >= near).all(axis=1))  # (m',)
     X, Y = sx[faces[tri]], sy[faces[tri]]  # (m', 3)
     area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
@@ -162,7 +170,7 @@ def rasterize(
     y1 = np.minimum(np.floor(Y.max(axis=1) - 0.5), h - 1).astype(np.int64)
     ok = (area != 0) & (x1 >= x0) & (y1 >= y0)
     tri, X, Y, area, x0, x1, y0, y1 = (a[ok] for a in (tri, X, Y, area, x0, x1, y0, y1))
-    log.debug("rasterize: %d of %d triangles on screen", len(tri), mesh.n_faces)
+    log.debug("rasterize: %d of %d triangles on screen", len(tri), len(faces))
 
     # 3. Fragments: every pixel centre inside a triangle, grouped by power-of-two box size.
     box_w = 1 << np.ceil(np.log2(x1 - x0 + 1)).astype(np.int64)
@@ -196,9 +204,14 @@ def rasterize(
     if not frag_tri:
         return image.reshape(h, w, 3)
     ftri, fpix, fb = np.concatenate(frag_tri), np.concatenate(frag_pix), np.concatenate(frag_b)
+    corners = faces[tri[ftri]]  # (F, 3)
+    if (look.cover < 1).any():  # fragments under half cover are not drawn (lash tips)
+        q = fb * inv_depth[corners]
+        cover = np.einsum("fi,fi->f", q, look.cover[corners]) / q.sum(axis=1)  # (F,)
+        keep = cover >= 0.5
+        ftri, fpix, fb, corners = ftri[keep], fpix[keep], fb[keep], corners[keep]
 
     # 4. Depth test: the largest screen-linear 1/depth per pixel wins.
-    corners = faces[tri[ftri]]  # (F, 3)
     finv = np.einsum("fi,fi->f", fb, inv_depth[corners])  # (F,)
     zbuf = np.full(h * w, -np.inf)
     np.maximum.at(zbuf, fpix, finv)
@@ -215,10 +228,12 @@ def rasterize(
     q /= q.sum(axis=1, keepdims=True)  # (k, 3)
     normals = np.einsum("ki,kid->kd", q, n_view[wc])
     positions = np.einsum("ki,kid->kd", q, p_view[wc])
-    if mesh.colors is not None:
-        colors = np.einsum("ki,kid->kd", q, mesh.colors[wc].astype(np.float64))
-    else:
-        colors = np.broadcast_to(albedo_rgb, (len(pixels), 3))
+    colors = np.einsum("ki,kid->kd", q, look.colors[wc])
+    gaze = np.einsum("ki,ki->k", q, look.gaze_cos[wc])  # (k,)
+    eye = gaze > NOT_EYE / 2
+    if eye.any():
+        iris = np.einsum("ki,kid->kd", q[eye], look.iris_colors[wc[eye]])
+        colors[eye] = eye_albedo(gaze[eye], colors[eye], iris)
     front = area[wt] < 0  # counter-clockwise with y up is clockwise with y down
     flat = np.linalg.norm(normals, axis=1) < 1e-12
     if flat.any():  # normals cancelled: use the face normal, toward the eye

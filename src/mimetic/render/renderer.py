@@ -12,6 +12,7 @@ coordinates for the wireframe overlay; the shading model lives in ``raster.shade
 from __future__ import annotations
 
 import logging
+import math
 import os
 import time
 import warnings
@@ -21,7 +22,8 @@ import numpy as np
 from mimetic.errors import MimeticWarning, RenderError
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
-from mimetic.render import raster
+from mimetic.render import appearance, raster
+from mimetic.render.appearance import Surface, surface
 from mimetic.render.camera import VIEWS, Camera, _size, clip_planes, frame_camera
 
 log = logging.getLogger(__name__)
@@ -37,23 +39,33 @@ in vec3 in_pos;
 in vec3 in_nrm;
 in vec3 in_col;
 in vec3 in_bary;
+in vec3 in_iris;
+in vec2 in_look;
 out vec3 v_pos;
 out vec3 v_nrm;
 out vec3 v_col;
 noperspective out vec3 v_bary;
+out vec3 v_iris;
+out vec2 v_look;
 void main() {
     vec4 p = view * vec4(in_pos, 1.0);
     v_pos = p.xyz;
     v_nrm = mat3(view) * in_nrm;
     v_col = in_col;
     v_bary = in_bary;
+    v_iris = in_iris;
+    v_look = in_look;
     gl_Position = proj * p;
 }
 """
 
-# Mirrors raster.shade; keep the two in step.
+# Mirrors raster.shade and appearance.eye_albedo; keep them in step. v_look is (gaze_cos, cover).
 _FRAGMENT_SHADER = """
 #version 330
+uniform vec3 cos_iris;      // cos of the iris, limbus and pupil angles
+uniform float limbus_shade;
+uniform vec3 pupil;
+uniform float not_eye;
 uniform vec3 light_dir;
 uniform float ambient;
 uniform float diffuse;
@@ -66,8 +78,17 @@ in vec3 v_pos;
 in vec3 v_nrm;
 in vec3 v_col;
 noperspective in vec3 v_bary;
+in vec3 v_iris;
+in vec2 v_look;
 out vec4 f_color;
 void main() {
+    if (v_look.y < 0.5) discard;
+    vec3 albedo = v_col;
+    if (v_look.x > 0.5 * not_eye) {
+        if (v_look.x >= cos_iris.z) albedo = pupil;
+        else if (v_look.x >= cos_iris.y) albedo = v_iris;
+        else if (v_look.x >= cos_iris.x) albedo = limbus_shade * v_iris;
+    }
     vec3 n;
     if (length(v_nrm) < 1e-12) {
         n = normalize(cross(dFdx(v_pos), dFdy(v_pos)));   // toward the eye
@@ -80,7 +101,7 @@ void main() {
     vec3 h = normalize(light_dir + v);
     float ndl = max(dot(n, light_dir), 0.0);
     float spec = ndl > 0.0 ? specular * pow(max(dot(n, h), 0.0), shininess) : 0.0;
-    vec3 c = v_col * (ambient + diffuse * ndl) + vec3(spec);
+    vec3 c = albedo * (ambient + diffuse * ndl) + vec3(spec);
     if (!gl_FrontFacing) c *= back_shade;
     if (wire_width > 0.0) {
         vec3 d = v_bary / max(fwidth(v_bary), vec3(1e-12));
@@ -90,6 +111,8 @@ void main() {
     f_color = vec4(clamp(c, 0.0, 1.0), 1.0);
 }
 """
+
+_CORNER_FLOATS = 17  # position, normal, colour, barycentric, iris colour, (gaze_cos, cover)
 
 _warned_fallback = False
 
@@ -170,6 +193,17 @@ class Renderer:
                 prog["shininess"].value = raster.SHININESS
                 prog["back_shade"].value = raster.BACK_FACE_SHADE
                 prog["wire_darken"].value = raster.WIRE_DARKEN
+                prog["cos_iris"].value = tuple(
+                    math.cos(a)
+                    for a in (
+                        appearance.IRIS_ANGLE_RAD,
+                        appearance.LIMBUS_ANGLE_RAD,
+                        appearance.PUPIL_ANGLE_RAD,
+                    )
+                )
+                prog["limbus_shade"].value = appearance.LIMBUS_SHADE
+                prog["pupil"].value = appearance.PUPIL
+                prog["not_eye"].value = appearance.NOT_EYE
         except Exception:
             ctx.release()
             raise
@@ -194,15 +228,27 @@ class Renderer:
         return self._framebuffers[key]
 
     def _upload(self, corners: np.ndarray) -> None:
-        """Write (3m, 12) float32 corner data, growing the buffer (and its VAO) when needed."""
+        """Write (3m, 14) float32 corner data, growing the buffer (and its VAO) when needed."""
         if len(corners) > self._capacity:
             for obj in (self._vao, self._vbo):
                 if obj is not None:
                     obj.release()
             self._capacity = max(len(corners), 2 * self._capacity)
-            self._vbo = self._ctx.buffer(reserve=self._capacity * 12 * 4, dynamic=True)
+            self._vbo = self._ctx.buffer(reserve=self._capacity * _CORNER_FLOATS * 4, dynamic=True)
             self._vao = self._ctx.vertex_array(
-                self._prog, [(self._vbo, "3f 3f 3f 3f", "in_pos", "in_nrm", "in_col", "in_bary")]
+                self._prog,
+                [
+                    (
+                        self._vbo,
+                        "3f 3f 3f 3f 3f 2f",
+                        "in_pos",
+                        "in_nrm",
+                        "in_col",
+                        "in_bary",
+                        "in_iris",
+                        "in_look",
+                    )
+                ],
             )
         self._vbo.write(corners)
 
@@ -216,6 +262,7 @@ class Renderer:
         albedo: tuple[float, float, float] = raster.ALBEDO,
         background: tuple[float, float, float] = raster.BACKGROUND,
         msaa: int = 4,
+        look: Surface | None = None,
     ) -> np.ndarray:
         """Render ``mesh`` seen by ``camera``.
 
@@ -223,13 +270,19 @@ class Renderer:
         ----------
         mesh : Mesh
             Smooth-shaded with area-weighted vertex normals, both sides lit (back faces darker);
-            coloured by ``mesh.colors`` (n, 3) when present, else ``albedo``.
+            drawn and coloured as ``look`` says.
         size : int or (width, height)
         wireframe : bool
             Darken a one-pixel line along every triangle edge.
         albedo, background : (r, g, b) float in [0, 1]
         msaa : int
             Samples per pixel for antialiasing (0 = off); ignored by the CPU backend.
+        look : Surface, optional
+            What to draw: ``appearance.surface(mesh, albedo)`` when omitted, which gives
+            ``mesh.colors`` (n, 3) when present, else ``albedo`` and the parts' material colours;
+            leaves out see-through films (transparent materials, eye occlusion shells, tear lines);
+            gives eyeballs of one flat colour a pupil, iris and sclera, and draws lashes dark and
+            thin and teeth ivory. Pass one made at a rest pose to draw a deformed mesh the same way.
 
         Returns
         -------
@@ -240,17 +293,29 @@ class Renderer:
             raise ValueError(f"msaa={msaa} must be 0 or a power of two")
         if self._ensure_backend() == "cpu":
             return raster.rasterize(
-                mesh, camera, size=(w, h), wireframe=wireframe, albedo=albedo, background=background
+                mesh,
+                camera,
+                size=(w, h),
+                wireframe=wireframe,
+                albedo=albedo,
+                background=background,
+                look=look,
             )
         albedo_rgb = raster._rgb(albedo, "albedo")
         background_rgb = raster._rgb(background, "background")
         raster.check_mesh(mesh)
-        faces = mesh.faces.ravel()  # (3m,) corner → vertex
-        corners = np.empty((len(faces), 12), np.float32)
+        look = look if look is not None else surface(mesh, albedo_rgb)
+        look.check(mesh)
+        drawn = mesh.faces[look.faces]  # (m', 3)
+        faces = drawn.ravel()  # (3m',) corner → vertex
+        corners = np.empty((len(faces), _CORNER_FLOATS), np.float32)
         corners[:, 0:3] = mesh.vertices[faces]
-        corners[:, 3:6] = vertex_normals(mesh.vertices, mesh.faces)[faces]
-        corners[:, 6:9] = mesh.colors[faces] if mesh.colors is not None else albedo_rgb
-        corners[:, 9:12] = np.tile(np.eye(3, dtype=np.float32), (mesh.n_faces, 1))
+        corners[:, 3:6] = vertex_normals(mesh.vertices, drawn)[faces]
+        corners[:, 6:9] = look.colors[faces]
+        corners[:, 9:12] = np.tile(np.eye(3, dtype=np.float32), (len(drawn), 1))
+        corners[:, 12:15] = look.iris_colors[faces]
+        corners[:, 15] = look.gaze_cos[faces]
+        corners[:, 16] = look.cover[faces]
         near, far = clip_planes(camera, mesh.vertices)
         # numpy is row-major and GL column-major: the bytes of M.T are M in GL's order.
         view = camera.view_matrix().T.astype(np.float32).tobytes()
@@ -318,10 +383,12 @@ def render(
     background: tuple[float, float, float] = raster.BACKGROUND,
     msaa: int = 4,
     fill: float = 0.8,
+    look: Surface | None = None,
 ) -> np.ndarray:
     """Render ``mesh`` from a named view (see ``VIEWS``) or a ``Camera``, with the shared renderer.
 
-    A named view frames the mesh's bounding box with ``frame_camera(..., fill=fill)``.
+    A named view frames the mesh's bounding box with ``frame_camera(..., fill=fill)``; ``look`` is
+    as in ``Renderer.render``.
 
     Returns
     -------
@@ -341,5 +408,12 @@ def render(
     renderer = default_renderer()
     renderer._ensure_backend(stacklevel=3)
     return renderer.render(
-        mesh, camera, size=(w, h), wireframe=wireframe, albedo=albedo, background=background, msaa=msaa
+        mesh,
+        camera,
+        size=(w, h),
+        wireframe=wireframe,
+        albedo=albedo,
+        background=background,
+        msaa=msaa,
+        look=look,
     )
