@@ -7,6 +7,7 @@ import numpy as np
 from mimetic.render.camera import VIEWS, Camera, frame_camera, project
 from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.model import Rig
+from mimetic.view.look import rig_look
 from mimetic.view.sheet import draw_lines, overlay_segments
 
 KIND_COLORS = {"linear": (0.95, 0.25, 0.2), "sphincter": (1.0, 0.85, 0.2), "sheet": (0.2, 0.8, 0.95)}
@@ -54,14 +55,15 @@ def render_rig(
     wireframe: bool = False,
     renderer: Renderer | None = None,
 ) -> np.ndarray:
-    """Shaded image (size, size, 3) uint8 of a rig's rest mesh, muscles drawn on top."""
+    """Shaded image (size, size, 3) uint8 of a rig's rest mesh (drawn as ``rig_look`` says: eyes,
+    lashes and films as what they are), muscles drawn on top."""
     renderer = renderer or default_renderer()
     if isinstance(view, str):
         if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; choose one of {', '.join(VIEWS)}")
         v = rig.mesh.vertices
         view = frame_camera(v.min(axis=0), v.max(axis=0), yaw_deg=VIEWS[view], fill=0.85)
-    image = renderer.render(rig.mesh, view, size=(size, size), wireframe=wireframe)
+    image = renderer.render(rig.mesh, view, size=(size, size), wireframe=wireframe, look=rig_look(rig))
     if muscles:
         segments, colors, ring = muscle_segments(rig)
         image = overlay_segments(image, view, segments[~ring], colors[~ring], width=2)

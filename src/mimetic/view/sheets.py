@@ -24,6 +24,7 @@ from mimetic.render.camera import VIEWS, Camera
 from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import pose
 from mimetic.rig.model import Rig
+from mimetic.view.look import rig_look
 from mimetic.view.sheet import contact_sheet
 
 log = logging.getLogger(__name__)
@@ -132,7 +133,8 @@ def pose_tiles(
     renderer: Renderer | None = None,
     progress: Progress | None = None,
 ) -> list[tuple[str, np.ndarray]]:
-    """Face close-ups of poses: (label, pose (c,), side) → one (label, image) tile per view.
+    """Face close-ups of poses: (label, pose (c,), side) → one (label, image) tile per view, the
+    mesh drawn as ``rig_look`` says.
 
     Tiles come pose by pose, views in order; the first view's label is the pose's, the others
     add the view (e.g. "joy 3/4"). Each image is (size, size, 3) uint8.
@@ -143,6 +145,7 @@ def pose_tiles(
     if unknown:
         raise ValueError(f"unknown view(s) {unknown}; choose from {', '.join(VIEWS)}")
     cameras: dict[float, Camera] = {}
+    look = rig_look(rig)
     tiles = []
     for done, (label, values, side) in enumerate(poses):
         mesh = rig.mesh.with_vertices(engine.deform(values))
@@ -150,7 +153,7 @@ def pose_tiles(
             yaw = _yaw(view, side)
             if yaw not in cameras:
                 cameras[yaw] = face_camera(rig, yaw_deg=yaw)
-            image = renderer.render(mesh, cameras[yaw], size=(size, size))
+            image = renderer.render(mesh, cameras[yaw], size=(size, size), look=look)
             tiles.append((label if k == 0 else f"{label} {_short(view)}", image))
         if progress:
             progress(done + 1, len(poses))
@@ -250,8 +253,12 @@ def render_pose(
         raise ValueError(f"unknown view {view!r}; choose all or one of {', '.join(VIEWS)}")
     renderer = renderer or default_renderer()
     mesh = posed_mesh(rig, engine, values)
+    look = rig_look(rig)
     tiles = [
-        (v.replace("_", " "), renderer.render(mesh, face_camera(rig, yaw_deg=VIEWS[v]), size=(size, size)))
+        (
+            v.replace("_", " "),
+            renderer.render(mesh, face_camera(rig, yaw_deg=VIEWS[v]), size=(size, size), look=look),
+        )
         for v in views
     ]
     return tiles[0][1] if len(tiles) == 1 else contact_sheet(tiles, columns=len(tiles))
