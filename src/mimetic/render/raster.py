@@ -1,11 +1,12 @@
 """A CPU z-buffer rasterizer in plain numpy: the fallback when EGL is missing, and a test oracle.
 
-It draws what the GL path in ``render.py`` draws, with the same shading model (defined here,
-in ``shade``), but without antialiasing. Triangles are grouped by the size of their pixel
-bounding box, so each group is one vectorised edge-function test over a (triangles, rows,
-columns) grid of pixel centres. Every covered pixel centre becomes a fragment; the nearest
-fragment per pixel wins (largest interpolated 1 / depth, which is affine in screen space),
-and only the winners are shaded.
+It draws what the GL path in ``renderer.py`` draws (the faces and colours ``appearance.surface``
+gives), with the same shading model (defined here, in ``shade``), but without antialiasing.
+Triangles are grouped by the size of their pixel bounding box, so each group is one vectorised
+edge-function test over a (triangles, rows, columns) grid of pixel centres. Every covered pixel
+centre becomes a fragment (unless the lash cover interpolated there is under half); the nearest
+fragment per pixel wins (largest interpolated 1 / depth, which is affine in screen space), and
+only the winners are shaded.
 
 Differences from GL: triangles with a vertex closer than the near plane are dropped rather
 than clipped (``frame_camera`` views never have any), and pixel centres exactly on a shared

@@ -6,7 +6,9 @@ numpy rasterizer in ``raster.py`` (same shading, no antialiasing) with one ``Mim
 ``MIMETIC_RENDER_BACKEND=egl|cpu`` forces a backend.
 
 Triangles are drawn non-indexed (three corners each) so each corner can carry barycentric
-coordinates for the wireframe overlay; the shading model lives in ``raster.shade``.
+coordinates for the wireframe overlay; the shading model lives in ``raster.shade``. Which faces are
+drawn and in which colours (films left out, eyeballs given an iris, lashes cut to their roots) is
+``appearance.surface``'s decision, which both renderers follow.
 """
 
 from __future__ import annotations
