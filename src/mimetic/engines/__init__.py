@@ -2,7 +2,8 @@
 
 ``make_engine(rig, "wire" | "vector")`` prepares an engine; ``engine.deform(pose) -> (n, 3)``.
 Every engine runs the thesis's chain after its muscle stage (skull, creases, skinning, lid
-sculptors) and can be baked to a linear ``Basis`` with ``mimetic.engines.bake.bake``.
+sculptors) and can be baked to a linear ``Basis`` with ``bake(engine).basis``;
+``evaluate_basis(basis, activations)`` then gives the vertices of any number of frames fast.
 """
 
 from __future__ import annotations
@@ -11,7 +12,11 @@ from typing import Protocol
 
 import numpy as np
 
+from mimetic.engines.bake import bake
+from mimetic.engines.basis import Basis, evaluate_basis
 from mimetic.rig.model import Rig
+
+__all__ = ["ENGINES", "Basis", "Engine", "bake", "evaluate_basis", "make_engine"]
 
 ENGINES = ("wire", "vector")
 

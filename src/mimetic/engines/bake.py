@@ -21,11 +21,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import combinations
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mimetic.engines import Engine
 from mimetic.engines.basis import Basis, Corrective, evaluate_basis
+
+if TYPE_CHECKING:  # mimetic.engines imports this module
+    from mimetic.engines import Engine
 
 Progress = Callable[[int, int], None]
 
@@ -132,11 +135,12 @@ def bake(
     basis = Basis(rig.channel_names, neutral, deltas, tuple(terms))
     linear = Basis(rig.channel_names, neutral, deltas)
     poses = random_poses(engine, samples, np.random.default_rng(seed))
+    fitted, fitted_linear = evaluate_basis(basis, poses), evaluate_basis(linear, poses)  # (samples, n, 3)
     errors, errors_linear = [], []
-    for pose in poses:
+    for pose, fit, fit_linear in zip(poses, fitted, fitted_linear, strict=True):
         truth = engine.deform(pose)
-        errors.append(np.linalg.norm(evaluate_basis(basis, pose) - truth, axis=1))
-        errors_linear.append(np.linalg.norm(evaluate_basis(linear, pose) - truth, axis=1))
+        errors.append(np.linalg.norm(fit - truth, axis=1))
+        errors_linear.append(np.linalg.norm(fit_linear - truth, axis=1))
         done += 1
         if progress:
             progress(done, steps)

@@ -134,7 +134,7 @@ def render_clip(
 ) -> Path:
     """Render ``clip`` on ``rig`` to an MP4 of ``size``² pixels (64..2160) at the clip's fps.
 
-    Each frame's pose comes from ``basis`` when given (``evaluate_basis``), else from the engine
+    Each frame's pose comes from ``basis`` when given (``evaluate_basis`` in float32), else from the engine
     ``engine``; the camera frames the rest face (``face_camera``), turned by ``yaw_deg``.
     """
     if not MIN_SIZE <= size <= MAX_SIZE:
@@ -147,7 +147,10 @@ def render_clip(
 
     def frames():
         for k, pose in enumerate(values):
-            vertices = evaluate_basis(basis, pose) if basis is not None else deform(pose)
+            if basis is not None:  # float32: far below a pixel, and what the GL renderer draws in
+                vertices = evaluate_basis(basis, pose, dtype=np.float32)
+            else:
+                vertices = deform(pose)
             yield renderer.render(rig.mesh.with_vertices(vertices), camera, size=(size, size))
             if progress is not None:
                 progress(k + 1, len(values))
