@@ -31,6 +31,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import cg, splu
 from scipy.spatial import cKDTree
 
+from mimetic.errors import MeshError
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.geometry import (
     boundary_edges,
@@ -109,12 +110,52 @@ def outer_faces(mesh: Mesh) -> np.ndarray:
     return np.nonzero(keep_face)[0]
 
 
+def _no_surface_message(mesh: Mesh) -> str:
+    """Why ``outer_faces`` found nothing to fit, and what to do about it."""
+    _, labels = connected_components(mesh.faces, mesh.n_vertices)
+    pieces = len(np.unique(labels[mesh.faces[:, 0]])) if len(mesh.faces) else 0
+    area = 0.5 * np.linalg.norm(face_normals(mesh.vertices, mesh.faces, unit=False), axis=1)
+    weld = (
+        "weld its vertices (Blender: Mesh > Clean Up > Merge by Distance; trimesh: mesh.merge_vertices()) "
+        "and export it again"
+    )
+    if not len(mesh.faces) or not np.isfinite(area).all() or area.sum() <= 0:
+        faces = f"{len(mesh.faces):,} face{'s' if len(mesh.faces) != 1 else ''}"
+        return (
+            f"the mesh has no surface to fit ({faces}, total area {area.sum():.3g}): its "
+            "faces are missing or degenerate (all corners at one point or on a line); export the head's "
+            "surface with its faces"
+        )
+    share = np.bincount(labels[mesh.faces[:, 0]], weights=area) / area.sum()
+    if share.max() < OUTER_AREA_SHARE:
+        return (
+            f"no connected surface covers {100 * OUTER_AREA_SHARE:.0f} % of the area: the mesh is in "
+            f"{pieces:,} pieces for {len(mesh.faces):,} faces (the largest {100 * share.max():.2g} %), as a "
+            f"triangle soup or a mesh exported without shared vertices is; {weld}"
+        )
+    return (
+        f"every face of the mesh's large pieces touches an open border ({pieces:,} pieces for "
+        f"{len(mesh.faces):,} faces), so there is no surface inside its borders to fit: the vertices look "
+        f"unwelded; {weld}"
+    )
+
+
 def sample_surface(mesh: Mesh, *, seed: int = 0) -> TargetSurface:
-    """Samples of ``mesh``'s outer surface: between ``MIN_SAMPLES`` and ``MAX_SAMPLES`` points."""
+    """Samples of ``mesh``'s outer surface: between ``MIN_SAMPLES`` and ``MAX_SAMPLES`` points.
+
+    Raises
+    ------
+    MeshError
+        When no outer surface remains (``outer_faces`` is empty or has no area): a triangle soup,
+        a mesh without shared vertices, or one of zero area.
+    """
     rng = np.random.default_rng(seed)
     faces = outer_faces(mesh)
     f = mesh.faces[faces]
     v = mesh.vertices
+    kept_area = 0.5 * np.linalg.norm(face_normals(v, f.reshape(-1, 3), unit=False), axis=1).sum()
+    if not len(faces) or not kept_area > 0:
+        raise MeshError(_no_surface_message(mesh))
     vn = vertex_normals(v, mesh.faces)
     used = np.unique(f)
     if len(used) > MAX_SAMPLES:
