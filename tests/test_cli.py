@@ -51,7 +51,7 @@ def test_head_with_rig_writes_a_loadable_rig(rig_file):
 def test_info_reports_units_parts_and_landmarks_of_a_rig(rig_file):
     result = run_cli("info", str(rig_file), "--json")
     assert result.exit_code == 0, result.output
-    report = json.loads(result.output)
+    report = json.loads(result.stdout)
     assert report["kind"] == "rig"
     assert report["units"] == "cm"
     assert "skin" in report["parts"] and "eye_L" in report["parts"]
@@ -140,7 +140,7 @@ def test_info_detects_millimetres(tmp_path):
     path = save_mesh(mm, tmp_path / "mm.ply")
     result = run_cli("info", str(path), "--json")
     assert result.exit_code == 0, result.output
-    assert json.loads(result.output)["detected_units"] == "mm"
+    assert json.loads(result.stdout)["detected_units"] == "mm"
 
 
 def test_info_rejects_a_truncated_rig(rig_file, tmp_path):
@@ -177,5 +177,143 @@ def test_head_rejects_out_of_range_parameter(tmp_path):
     )
 
 
-def test_render_rejects_unknown_view(rig_file, tmp_path):
-    _fails_with(run_cli("render", str(rig_file), "--view", "top", "-o", str(tmp_path / "x.png")), "top")
+def _usage_error(result, *words: str) -> None:
+    """Exit 2 with typer's usage message naming the option and the value."""
+    assert result.exit_code == 2, result.output
+    for word in words:
+        assert word in result.output, f"{word!r} not in {result.output!r}"
+    assert "Traceback" not in result.output
+
+
+def test_render_rejects_unknown_view_as_a_usage_error(rig_file, tmp_path):
+    _usage_error(
+        run_cli("render", str(rig_file), "--view", "top", "-o", str(tmp_path / "x.png")), "--view", "top"
+    )
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".jpeg", ".webp"])
+def test_render_writes_the_format_its_suffix_names(rig_file, tmp_path, suffix):
+    out = tmp_path / f"r{suffix}"
+    assert run_cli("render", str(rig_file), "--view", "front", "--size", "64", "-o", out).exit_code == 0
+    image = Image.open(out)
+    assert image.format == {".jpg": "JPEG", ".jpeg": "JPEG", ".webp": "WEBP"}[suffix] and image.size == (
+        64,
+        64,
+    )
+
+
+def test_version_prints_the_package_version():
+    import mimetic
+
+    result = run_cli("--version")
+    assert result.exit_code == 0 and result.output.strip() == f"mimetic {mimetic.__version__}"
+
+
+def test_every_command_help_shows_examples():
+    for command in ("head", "info", "render", "rig", "pose", "animate", "export", "list", "demo"):
+        result = run_cli(command, "--help")
+        assert result.exit_code == 0 and "Examples:" in result.output, command
+        assert f"mimetic {command}" in result.output, command
+    for sub in ("new", "edit"):
+        assert "mimetic clip " + sub in run_cli("clip", sub, "--help").output
+
+
+def test_an_unexpected_error_is_one_line_without_a_traceback(rig_file, tmp_path, monkeypatch):
+    import mimetic.rig.format as rig_format
+
+    def broken(path):
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(rig_format, "load_rig", broken)
+    result = run_cli("pose", rig_file, "-o", tmp_path / "x.png")
+    assert result.exit_code == 1
+    (line,) = result.output.strip().splitlines()
+    assert line.startswith("error: unexpected ZeroDivisionError: division by zero") and "--debug" in line
+    with pytest.raises(ZeroDivisionError):
+        run_cli("--debug", "pose", rig_file, "-o", tmp_path / "x.png")
+
+
+def test_error_messages_keep_their_brackets(rig_file, tmp_path, monkeypatch):
+    """Messages are printed as text: an install hint's [track] is not eaten as rich markup."""
+    import mimetic.rig.format as rig_format
+    from mimetic.errors import MissingExtraError, install_hint
+
+    def missing(path):
+        raise MissingExtraError(f"face tracking needs the optional extra [track]: {install_hint('track')}")
+
+    monkeypatch.setattr(rig_format, "load_rig", missing)
+    result = run_cli("pose", rig_file, "-o", tmp_path / "x.png")
+    assert (
+        result.exit_code == 1 and "[track]" in result.output and "pip install -e '.[track]'" in result.output
+    )
+
+
+def test_warnings_are_one_line_each_without_source_lines(tmp_path):
+    head = make_head(resolution=2500)
+    path = save_mesh(Mesh(head.mesh.vertices * 10.0, head.mesh.faces), tmp_path / "mm.stl")  # no units in STL
+    result = run_cli("render", str(path), "--view", "front", "--size", "64", "-o", tmp_path / "r.png")
+    assert result.exit_code == 0, result.output
+    warning = [line for line in result.output.splitlines() if line.startswith("warning:")]
+    assert warning and "mm" in warning[0] and "--units" in warning[0]
+    assert "warnings.warn" not in result.output and ".py:" not in result.output
+
+
+def test_output_folders_are_checked_before_any_work(rig_file, tmp_path, monkeypatch):
+    import mimetic.rig.format as rig_format
+
+    def never(path):
+        raise AssertionError("the rig was loaded before the output was checked")
+
+    monkeypatch.setattr(rig_format, "load_rig", never)
+    result = run_cli("pose", rig_file, "-o", tmp_path / "missing" / "x.png")
+    assert result.exit_code == 1 and "does not exist" in result.output and "missing" in result.output
+
+
+def test_long_lines_are_not_wrapped_when_piped(tmp_path):
+    head = make_head(resolution=2500)
+    path = save_mesh(
+        Mesh(head.mesh.vertices, head.mesh.faces, units="cm"),
+        tmp_path / "a_rather_long_file_name_for_a_head_mesh_export.obj",
+    )
+    result = run_cli("info", str(path))
+    assert result.exit_code == 0
+    assert any(len(line) > 80 for line in result.output.splitlines())  # rich would wrap at 80
+
+
+def test_progress_counts_only_a_known_total():
+    from rich.progress import Progress
+
+    from mimetic.cli import _Count
+
+    with Progress() as bar:
+        task = bar.add_task("x", total=None)
+        assert str(_Count().render(bar.tasks[task])) == ""
+        bar.update(task, completed=3, total=7)
+        assert str(_Count().render(bar.tasks[task])) == "3/7"
+
+
+@pytest.mark.parametrize(
+    ("what", "names"),
+    [
+        ("expressions", ["joy", "surprise", "pucker"]),
+        ("channels", ["jaw_open", "zygomatic_major_L", "rad"]),
+        ("muscles", ["zygomatic_major_L", "orbicularis_oris", "sphincter"]),
+        ("controls", ["Smile/Wide"]),
+        ("facs", ["AU12", "Lip corner puller"]),
+        ("arkit", ["jawOpen", "eyeBlinkLeft"]),
+    ],
+)
+def test_list_names_what_commands_take(rig_file, what, names):
+    result = run_cli("list", what, *([rig_file] if what in ("channels", "muscles") else []))
+    assert result.exit_code == 0, result.output
+    for name in names:
+        assert name in result.output, name
+
+
+def test_list_channels_as_json_gives_ranges_and_units(rig_file):
+    result = run_cli("list", "channels", rig_file, "--json")
+    rows = {row["name"]: row for row in json.loads(result.stdout)}
+    assert len(rows) == len(load_rig(rig_file).channels)
+    assert rows["jaw_open"]["unit"] == "rad" and rows["jaw_open"]["maximum"] > rows["jaw_open"]["minimum"]
+    assert rows["zygomatic_major_L"]["unit"] == "activation"

@@ -58,21 +58,22 @@ def test_animate_renders_an_mp4(files):
 
 
 @pytest.mark.parametrize(
-    ("args", "message"),
+    ("args", "message", "code"),
     [
-        (("clip", "edit", "CLIP", "--key", "jaw_open=0.3", "-o", "OUT"), "CHANNEL@TIME"),
-        (("clip", "edit", "CLIP", "--key", "no_such@0.5=1", "-o", "OUT"), "no_such"),
-        (("clip", "new", "RIG", "--pose", "later:joy", "-o", "OUT"), "TIME:EXPRESSION"),
-        (("clip", "new", "RIG", "--pose", "0:no_such_expression", "-o", "OUT"), "no_such_expression"),
-        (("animate", "RIG", "--clip", "CLIP", "-o", "OUT.avi"), ".mp4"),
+        (("clip", "edit", "CLIP", "--key", "jaw_open=0.3", "-o", "OUT"), "CHANNEL@TIME", 2),
+        (("clip", "edit", "CLIP", "--key", "no_such@0.5=1", "-o", "OUT"), "no_such", 1),
+        (("clip", "new", "RIG", "--pose", "later:joy", "-o", "OUT"), "TIME:EXPRESSION", 2),
+        (("clip", "new", "RIG", "--pose", "0:no_such_expression", "-o", "OUT"), "no_such_expression", 1),
+        (("animate", "RIG", "--clip", "CLIP", "-o", "OUT.avi"), ".mp4", 2),
     ],
 )
-def test_bad_input_is_one_line_and_writes_nothing(files, args, message):
+def test_bad_input_is_one_line_and_writes_nothing(files, args, message, code):
+    """Malformed values and unsupported outputs are usage errors (2); unknown names are input errors (1)."""
     rig_file, clip_file, folder = files
     out = folder / "never.json"
     swap = {"CLIP": clip_file, "RIG": rig_file, "OUT": out, "OUT.avi": folder / "never.avi"}
     result = run_cli(*[swap.get(a, a) for a in args])
-    assert result.exit_code == 1 and message in result.output
+    assert result.exit_code == code and message in result.output, result.output
     assert not out.exists() and not (folder / "never.avi").exists()
 
 

@@ -57,7 +57,7 @@ def test_rig_writes_rig_report_and_picture(head_files):
 def test_rig_refuses_both_landmark_sources(head_files, tmp_path):
     _, mesh_file, lm_file, _ = head_files
     result = run_cli("rig", mesh_file, "--landmarks", lm_file, "--auto-landmarks", "-o", tmp_path / "x.mrig")
-    assert result.exit_code == 1 and "not both" in result.output
+    assert result.exit_code == 2 and "not both" in result.output  # a usage error
     assert not (tmp_path / "x.mrig").exists()
 
 

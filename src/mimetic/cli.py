@@ -1,21 +1,42 @@
 """The ``mimetic`` command (typer + rich): thin wrappers over the library.
 
-Results go to stdout; progress and errors go to stderr. Exit codes: 0 success, 1 a problem
-with the input (shown as one line, ``--debug`` for the traceback), 2 a usage error.
+Results go to stdout; progress, warnings and errors go to stderr. Exit codes:
+
+* 0: success;
+* 1: a problem with the input (a broken mesh, a rig without that channel, an unwritable folder),
+  shown as one line that says what is wrong and how to fix it; anything unexpected is one line too,
+  asking for a report (``mimetic --debug …`` shows the traceback);
+* 2: a usage error: an unknown option, a malformed or out-of-range value, an output type the
+  command does not write (typer's own message).
+
+Output paths are checked before any work starts, and every file is written atomically.
 """
 
 from __future__ import annotations
 
+import functools
 import json
+import sys
+import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from enum import Enum
 from pathlib import Path
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    Progress,
+    ProgressColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
+from rich.text import Text
 
+from mimetic import __version__
 from mimetic.errors import MimeticError
 
 app = typer.Typer(
@@ -23,39 +44,153 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_show_locals=False,
     add_completion=False,
+    rich_markup_mode=None,  # help texts hold literal brackets ([track], [0, 1]) and no markup
 )
-stdout = Console()
-stderr = Console(stderr=True)
+PIPED_WIDTH = 200
+"""Line width when stdout or stderr is not a terminal (rich would wrap at 80)."""
+stdout = Console(soft_wrap=True, highlight=False, width=None if sys.stdout.isatty() else PIPED_WIDTH)
+stderr = Console(
+    stderr=True, soft_wrap=True, highlight=False, width=None if sys.stderr.isatty() else PIPED_WIDTH
+)
 _state = {"debug": False}
+
+ENGINE_NAMES = ("wire", "vector")
+ViewName = Enum("ViewName", {v: v for v in ("front", "three_quarter", "profile")}, type=str)
+SheetView = Enum("SheetView", {v: v for v in ("front", "three_quarter", "profile", "all")}, type=str)
+EngineName = Enum("EngineName", {e: e for e in ENGINE_NAMES}, type=str)
+Interpolation = Enum("Interpolation", {i: i for i in ("step", "linear", "cubic", "tcb")}, type=str)
+Units = Enum("Units", {u: u for u in ("mm", "cm", "dm", "m", "in")}, type=str)
+
+
+def _version(value: bool) -> None:
+    if value:
+        stdout.print(f"mimetic {__version__}")
+        raise typer.Exit()
 
 
 @app.callback()
-def main(debug: bool = typer.Option(False, "--debug", help="Show tracebacks for input errors.")) -> None:
+def main(
+    debug: bool = typer.Option(False, "--debug", help="Show the traceback of an error."),
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version and exit."
+    ),
+) -> None:
+    """mimetic: turn any 3D head mesh into a muscle-driven, animatable face.
+
+    Examples:
+
+    \b
+      mimetic demo
+      mimetic rig my_head.obj -o my_head.mrig
+      mimetic pose my_head.mrig --expr joy -o joy.png
+    """
     _state["debug"] = debug
 
 
-@contextmanager
-def _user_errors() -> Iterator[None]:
-    """Turn a MimeticError into one red line on stderr and exit code 1."""
-    try:
-        yield
-    except MimeticError as error:
-        if _state["debug"]:
-            raise
-        stderr.print(f"[red]error:[/] {error}", highlight=False, soft_wrap=True)
-        raise typer.Exit(1) from None
+# --------------------------------------------------------------------------- the error boundary
+
+
+def _message(error: BaseException) -> str:
+    """One line for the user: a MimeticError's own message, a file error with its file, else a bug."""
+    if isinstance(error, MimeticError):
+        return str(error)
+    if isinstance(error, OSError) and error.strerror:
+        where = f"{error.filename}: " if error.filename else ""
+        return f"{where}{error.strerror}"
+    return (
+        f"unexpected {type(error).__name__}: {error}. This is a bug in mimetic: run the command again "
+        "with --debug (mimetic --debug …) for the traceback and report it."
+    )
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python warnings as one line each on stderr, without the source path and code line."""
+    stderr.print(Text.assemble(("warning: ", "yellow"), str(message)))
+
+
+def _guarded(command: Callable) -> Callable:
+    """Run a command inside the error boundary: no traceback without --debug, warnings as lines."""
+
+    @functools.wraps(command)
+    def run(*args, **kwargs):
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = _show_warning
+            try:
+                return command(*args, **kwargs)
+            except (typer.Exit, typer.Abort, typer.TyperException):
+                raise
+            except KeyboardInterrupt:
+                stderr.print("interrupted")
+                raise typer.Exit(130) from None
+            except Exception as error:
+                if _state["debug"]:
+                    raise
+                stderr.print(Text.assemble(("error: ", "bold red"), _message(error)))
+                raise typer.Exit(1) from None
+
+    return run
+
+
+def command(name: str | None = None, parent: typer.Typer = app):
+    """``@app.command()`` with the error boundary."""
+
+    def register(function: Callable) -> Callable:
+        return parent.command(name)(_guarded(function))
+
+    return register
+
+
+def _output(path: Path, suffixes: tuple[str, ...], option: str = "-o") -> Path:
+    """Check an output file before any work: a suffix the command writes (else a usage error, exit 2)
+    and an existing, writable folder (else exit 1)."""
+    if path.suffix.lower() not in suffixes:
+        raise typer.BadParameter(
+            f"{path.name}: unsupported output {path.suffix or '(no suffix)'!r}; use {', '.join(suffixes)}",
+            param_hint=f"'{option}'",
+        )
+    return _folder_of(path)
+
+
+def _folder_of(path: Path) -> Path:
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise MimeticError(f"the folder {folder} does not exist; create it first (mkdir -p {folder})")
+    if path.is_dir():
+        raise MimeticError(f"{path} is a folder; give a file name")
+    import os
+
+    if not os.access(folder, os.W_OK):
+        raise MimeticError(f"cannot write into {folder}: permission denied")
+    return path
+
+
+# --------------------------------------------------------------------------- progress
+
+
+class _Count(ProgressColumn):
+    """``done/total``, or nothing while the total is unknown."""
+
+    def render(self, task) -> Text:
+        return Text("" if task.total is None else f"{task.completed:g}/{task.total:g}")
+
+
+def _bar(description: str = "{task.description}") -> Progress:
+    return Progress(
+        TextColumn(description),
+        BarColumn(),
+        _Count(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=stderr,
+        transient=True,
+    )
 
 
 @contextmanager
 def _progress(label: str) -> Iterator[Callable[[int, int], None]]:
-    with Progress(
-        TextColumn(label),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total}"),
-        TimeElapsedColumn(),
-        console=stderr,
-        transient=True,
-    ) as bar:
+    """A progress callback ``(done, total)`` showing one bar."""
+    with _bar(label) as bar:
         task = bar.add_task(label, total=None)
 
         def update(done: int, total: int) -> None:
@@ -64,74 +199,180 @@ def _progress(label: str) -> Iterator[Callable[[int, int], None]]:
         yield update
 
 
-def _name_values(
-    items: list[str], option: str, form: str, example: str, error: type[MimeticError]
-) -> dict[str, float]:
-    """Repeated ``NAME=VALUE`` options -> {name: value}; a malformed item raises ``error``."""
-    values = {}
+@contextmanager
+def _step_progress() -> Iterator[Callable[[str, int, int], None]]:
+    """A progress callback ``(step, done, total)`` showing one bar per named step."""
+    with _bar() as bar:
+        tasks: dict[str, int] = {}
+
+        def update(step: str, done: int, total: int) -> None:
+            if step not in tasks:
+                tasks[step] = bar.add_task(step, total=total)
+            bar.update(tasks[step], completed=done, total=total)
+
+        yield update
+
+
+# --------------------------------------------------------------------------- option parsing
+
+
+def _name_value(item: str, option: str, form: str, example: str) -> tuple[str, float]:
+    """``NAME=VALUE`` → (name, value); a malformed item is a usage error (exit 2)."""
+    name, sep, value = item.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        sep = ""
+    if not sep or not name.strip():
+        raise typer.BadParameter(
+            f"{item!r}: expected {form}, e.g. {option} {example}", param_hint=f"'{option}'"
+        )
+    return name.strip(), number
+
+
+def _params(items: list[str]) -> list[str]:
     for item in items:
-        name, sep, value = item.partition("=")
+        _name_value(item, "--param", "NAME=VALUE", "nose_length=1.05")
+    return items
+
+
+def _values(items: list[str]) -> list[str]:
+    for item in items:
+        _name_value(item, "--set", "CHANNEL=VALUE", "jaw_open=0.2")
+    return items
+
+
+def _weights(items: list[str]) -> list[str]:
+    for item in items:
+        if "=" in item:
+            _name_value(item, "--expr", "NAME or NAME=WEIGHT", "joy=0.7")
+        elif not item.strip():
+            raise typer.BadParameter("an empty expression name", param_hint="'--expr'")
+    return items
+
+
+def _as_values(items: list[str]) -> dict[str, float]:
+    """Checked ``--set`` items → {channel: value}."""
+    return dict(_name_value(item, "--set", "", "") for item in items)
+
+
+def _as_weights(items: list[str]) -> list[tuple[str, float]]:
+    """Checked ``--expr`` items → [(expression, weight)]."""
+    return [_name_value(i, "--expr", "", "") if "=" in i else (i.strip(), 1.0) for i in items]
+
+
+def _poses(items: list[str]) -> list[str]:
+    for item in items:
+        _pose_spec(item)
+    return items
+
+
+def _pose_spec(item: str) -> tuple[float, dict[str, float] | None]:
+    """``TIME:EXPR[=W][+EXPR[=W]...]`` or ``TIME:rest`` → (time_s, {expression: weight} or None)."""
+    time_text, sep, rest = item.partition(":")
+    try:
+        time_s = float(time_text.strip().removesuffix("s"))
+    except ValueError:
+        sep = ""
+    if not sep or not rest.strip():
+        raise typer.BadParameter(
+            f"{item!r}: expected TIME:EXPRESSION[=WEIGHT][+...], e.g. --pose 0.5:joy=0.8",
+            param_hint="'--pose'",
+        )
+    if rest.strip() == "rest":
+        return time_s, None
+    weights = {}
+    for part in rest.split("+"):
+        name, eq, value = part.partition("=")
         try:
-            values[name.strip()] = float(value)
+            weights[name.strip()] = float(value) if eq else 1.0
         except ValueError:
-            sep = ""
-        if not sep or not name.strip():
-            raise error(f"{option} {item!r}: expected {form}, e.g. {option} {example}")
-    return values
+            raise typer.BadParameter(
+                f"{item!r}: weight {value!r} of {name.strip()!r} is not a number", param_hint="'--pose'"
+            ) from None
+    return time_s, weights
 
 
-def _parse_params(items: list[str]) -> dict[str, float]:
-    from mimetic.head.params import HeadParamError
+def _keys(items: list[str]) -> list[str]:
+    from mimetic.animate.clip import ClipError, parse_key_spec
 
-    return _name_values(items, "--param", "NAME=VALUE", "nose_length=1.1", HeadParamError)
+    for item in items:
+        try:
+            parse_key_spec(item)
+        except ClipError as error:
+            raise typer.BadParameter(str(error), param_hint="'--key'") from None
+    return items
 
 
-@app.command()
+# --------------------------------------------------------------------------- commands
+
+
+@command()
 def head(
     out: Path = typer.Option(..., "-o", "--out", help="Mesh file to write (.glb, .gltf, .obj, .ply, .stl)."),
     seed: int | None = typer.Option(None, "--seed", help="Random conformation from this seed."),
     param: list[str] = typer.Option(
-        [], "--param", help="Set a conformation parameter, NAME=VALUE (repeatable)."
+        [],
+        "--param",
+        metavar="NAME=VALUE",
+        callback=_params,
+        help="Set a conformation parameter (repeatable).",
     ),
     resolution: int = typer.Option(
-        10_000, "--resolution", help="Approximate skin vertex count (1,500..250,000)."
+        10_000, "--resolution", min=1_500, max=250_000, help="Approximate skin vertex count."
     ),
     rig: Path | None = typer.Option(None, "--rig", help="Also write the head's rig to this .mrig file."),
 ) -> None:
-    """Generate a parametric reference head and write it as a mesh (and optionally its rig)."""
+    """Generate a parametric reference head and write it as a mesh (and optionally its rig).
+
+    Examples:
+
+    \b
+      mimetic head -o head.glb
+      mimetic head --seed 7 --param nose_length=1.05 -o head.obj --rig head.mrig
+    """
     from mimetic.head.model import make_head
     from mimetic.head.params import HeadParams
-    from mimetic.mesh.io import save_mesh
+    from mimetic.mesh.io import SUPPORTED_FORMATS, save_mesh
 
-    with _user_errors():
-        if not 1_500 <= resolution <= 250_000:
-            raise MimeticError(f"--resolution {resolution} is outside 1,500..250,000 skin vertices")
-        params = HeadParams() if seed is None else HeadParams.random(seed)
-        params = params.with_values(**_parse_params(param))
-        generated = make_head(params, resolution)
-        written = [save_mesh(generated.mesh, out)]
-        if rig is not None:
-            from mimetic.rig.format import save_rig
-            from mimetic.rig.recipe import build_rig
+    _output(out, SUPPORTED_FORMATS)
+    if rig is not None:
+        _output(rig, (".mrig",), "--rig")
+    params = HeadParams() if seed is None else HeadParams.random(seed)
+    params = params.with_values(**dict(_name_value(p, "--param", "", "") for p in param))
+    generated = make_head(params, resolution)
+    written = [save_mesh(generated.mesh, out)]
+    if rig is not None:
+        from mimetic.rig.format import save_rig
+        from mimetic.rig.recipe import build_rig
 
-            written.append(save_rig(build_rig(generated), rig))
+        written.append(save_rig(build_rig(generated), rig))
     for path in written:
-        stdout.print(f"wrote {path}", highlight=False)
+        stdout.print(f"wrote {path}")
 
 
-@app.command()
+@command()
 def info(
-    file: Path = typer.Argument(..., help="A mesh (.obj .ply .stl .glb .gltf) or a rig (.mrig)."),
-    units: str | None = typer.Option(None, "--units", help="Override the units: mm, cm, dm or m."),
+    file: Path = typer.Argument(
+        ..., metavar="FILE", help="A mesh (.obj .ply .stl .glb .gltf) or a rig (.mrig)."
+    ),
+    units: Units | None = typer.Option(None, "--units", help="The mesh's units if the file does not say."),
     as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
 ) -> None:
-    """Validate a mesh or rig and report its units, parts and landmarks."""
-    with _user_errors():
-        if file.suffix.lower() == ".mrig":
-            report = _rig_report(file)
-            ok = True
-        else:
-            report, ok = _mesh_report(file, units)
+    """Validate a mesh or rig and report its units, parts, seams, winding and landmarks.
+
+    Exit code 1 when the mesh cannot be rigged as it is.
+
+    Examples:
+
+    \b
+      mimetic info scan.obj
+      mimetic info scan.stl --units mm --json
+    """
+    if file.suffix.lower() == ".mrig":
+        report, ok = _rig_report(file), True
+    else:
+        report, ok = _mesh_report(file, None if units is None else units.value)
     if as_json:
         stdout.print_json(json.dumps(report))
     else:
@@ -172,7 +413,7 @@ def _rig_report(file: Path) -> dict:
         f"muscles           {len(rig.muscles)} ({', '.join(f'{n} {k}' for k, n in kinds.items())})",
         f"wires             {len(rig.wires)}",
         f"bones             {', '.join(rig.bone_names)}",
-        f"channels          {len(rig.channels)}",
+        f"channels          {len(rig.channels)} (mimetic list channels {file.name})",
     ]
     return {
         "file": str(file),
@@ -189,85 +430,74 @@ def _rig_report(file: Path) -> dict:
 
 
 def _print_report(report: dict) -> None:
-    stdout.print(f"[bold]{report['file']}[/] ({report['kind']})", highlight=False)
+    stdout.print(Text.assemble((report["file"], "bold"), f" ({report['kind']})"))
     for line in report["lines"]:
-        stdout.print(f"  {line}", highlight=False, soft_wrap=True)
+        stdout.print(f"  {line}", markup=False)
     landmarks = report["landmarks"]
     text = landmarks if isinstance(landmarks, str) else f"{len(landmarks)}: {', '.join(landmarks)}"
-    stdout.print(f"  landmarks         {text}", highlight=False, soft_wrap=True)
+    stdout.print(f"  landmarks         {text}", markup=False)
 
 
-@app.command()
+IMAGE_OUTPUTS = (".png", ".jpg", ".jpeg", ".webp")
+
+
+@command()
 def render(
-    file: Path = typer.Argument(..., help="A mesh or a .mrig rig."),
-    out: Path = typer.Option(..., "-o", "--out", help="PNG file to write."),
-    view: str = typer.Option(
-        "all", "--view", help="front, three_quarter, profile, or all (a labelled sheet)."
+    file: Path = typer.Argument(..., metavar="FILE", help="A mesh or a .mrig rig."),
+    out: Path = typer.Option(..., "-o", "--out", help="Image to write (.png, .jpg, .webp)."),
+    view: SheetView = typer.Option(
+        SheetView.all, "--view", help="front, three_quarter, profile, or all (a labelled sheet of the three)."
     ),
-    size: int = typer.Option(512, "--size", help="Image size in pixels (per view)."),
+    size: int = typer.Option(512, "--size", min=64, max=4096, help="Image size in pixels (per view)."),
     wireframe: bool = typer.Option(False, "--wireframe", help="Draw the triangle edges."),
     muscles: bool = typer.Option(True, "--muscles/--no-muscles", help="Draw a rig's muscles."),
-    units: str | None = typer.Option(None, "--units", help="Override a mesh's units: mm, cm, dm or m."),
+    units: Units | None = typer.Option(None, "--units", help="A mesh's units if the file does not say."),
 ) -> None:
-    """Render a mesh or rig to a PNG, from one angle or three."""
-    from mimetic.view import VIEWS, contact_sheet, save_png
-    from mimetic.view import render as render_mesh
+    """Render a mesh or rig to an image, from one angle or three.
 
-    with _user_errors():
-        views = list(VIEWS) if view == "all" else [view]
-        unknown = [v for v in views if v not in VIEWS]
-        if unknown:
-            raise MimeticError(f"--view {view!r} is not one of: all, {', '.join(VIEWS)}")
-        if not 64 <= size <= 4096:
-            raise MimeticError(f"--size {size} is outside 64..4096 pixels")
-        if file.suffix.lower() == ".mrig":
-            from mimetic.rig.format import load_rig
-            from mimetic.view.muscles import render_rig
+    Examples:
 
-            rig = load_rig(file)
-            tiles = [(v, render_rig(rig, v, size=size, muscles=muscles, wireframe=wireframe)) for v in views]
-        else:
-            from mimetic.mesh.io import load_mesh
+    \b
+      mimetic render scan.obj -o scan.png
+      mimetic render head.mrig --view front --no-muscles --size 1024 -o face.jpg
+    """
+    from mimetic.render import VIEWS
+    from mimetic.render import render as render_mesh
+    from mimetic.view import contact_sheet, save_image
 
-            mesh = load_mesh(file, units=units)
-            tiles = [(v, render_mesh(mesh, v, size=size, wireframe=wireframe)) for v in views]
-        image = tiles[0][1] if len(tiles) == 1 else contact_sheet(tiles, columns=len(tiles))
-        save_png(image, out)
-    stdout.print(f"wrote {out}", highlight=False)
+    _output(out, IMAGE_OUTPUTS)
+    views = list(VIEWS) if view.value == "all" else [view.value]
+    if file.suffix.lower() == ".mrig":
+        from mimetic.rig.format import load_rig
+        from mimetic.view.muscles import render_rig
 
+        rig = load_rig(file)
+        tiles = [(v, render_rig(rig, v, size=size, muscles=muscles, wireframe=wireframe)) for v in views]
+    else:
+        from mimetic.mesh.io import load_mesh
 
-@contextmanager
-def _step_progress() -> Iterator[Callable[[str, int, int], None]]:
-    """A progress callback ``(step, done, total)`` showing one bar per named step."""
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total}"),
-        TimeElapsedColumn(),
-        console=stderr,
-        transient=True,
-    ) as bar:
-        tasks: dict[str, int] = {}
-
-        def update(step: str, done: int, total: int) -> None:
-            if step not in tasks:
-                tasks[step] = bar.add_task(step, total=total)
-            bar.update(tasks[step], completed=done, total=total)
-
-        yield update
+        mesh = load_mesh(file, units=None if units is None else units.value)
+        tiles = [(v, render_mesh(mesh, v, size=size, wireframe=wireframe)) for v in views]
+    image = tiles[0][1] if len(tiles) == 1 else contact_sheet(tiles, columns=len(tiles))
+    save_image(image, out)
+    stdout.print(f"wrote {out}")
 
 
-@app.command("rig")
+@command("rig")
 def rig_command(
-    mesh_file: Path = typer.Argument(..., help="The head mesh to rig (.obj .ply .stl .glb .gltf)."),
+    mesh_file: Path = typer.Argument(
+        ..., metavar="MESH", help="The head mesh to rig (.obj .ply .stl .glb .gltf)."
+    ),
     out: Path = typer.Option(..., "-o", "--out", help="The .mrig file to write."),
     landmarks: Path | None = typer.Option(
-        None, "--landmarks", help="Landmark file (JSON or CSV; project or ibug68_NN names)."
+        None, "--landmarks", help="Landmark file (JSON or CSV; project names or ibug68_01..ibug68_68)."
     ),
     auto_landmarks: bool = typer.Option(
         False, "--auto-landmarks", help="Find landmarks with MediaPipe (the default without --landmarks)."
     ),
-    units: str | None = typer.Option(None, "--units", help="The mesh's units if the file does not say."),
+    units: Units | None = typer.Option(
+        None, "--units", help="The mesh's units if the file does not say (else guessed from its size)."
+    ),
     report: Path | None = typer.Option(
         None, "--report", help="Fit report JSON (default: next to the rig, NAME.fit.json)."
     ),
@@ -275,211 +505,198 @@ def rig_command(
         None, "--picture", help="Residual-coloured PNG of the fit (default: NAME.fit.png)."
     ),
     force: bool = typer.Option(False, "--force", help="Write the rig even if the fit looks wrong."),
-    resolution: int = typer.Option(10_000, "--resolution", help="Skin vertex count of the reference head."),
+    resolution: int = typer.Option(
+        10_000, "--resolution", min=1_500, max=250_000, help="Skin vertex count of the reference head."
+    ),
 ) -> None:
-    """Fit the reference head to a mesh and write a muscle rig on the mesh's own vertices."""
+    """Fit the reference head to a mesh and write a muscle rig on the mesh's own vertices.
+
+    Examples:
+
+    \b
+      mimetic rig my_head.obj -o my_head.mrig
+      mimetic rig scan.stl --units mm --landmarks dlib68.csv -o scan.mrig
+    """
     from mimetic.fit.autolandmarks import auto_landmarks as find_landmarks
     from mimetic.fit.landmarks import read_landmarks
     from mimetic.fit.pipeline import rig_head
     from mimetic.mesh.io import load_mesh
     from mimetic.rig.format import save_rig
 
-    with _user_errors():
-        if landmarks is not None and auto_landmarks:
-            raise MimeticError("give --landmarks FILE or --auto-landmarks, not both")
-        if out.suffix.lower() != ".mrig":
-            raise MimeticError(f"-o {out}: a rig is written as .mrig")
-        mesh = load_mesh(mesh_file, units=units)
-        with _step_progress() as progress:
-            if landmarks is not None:
-                found = read_landmarks(landmarks, mesh_units=mesh.units)
-            else:
-                progress("landmarks (MediaPipe)", 0, 1)
-                found = find_landmarks(mesh)
-                progress("landmarks (MediaPipe)", 1, 1)
-            result = rig_head(
-                mesh,
-                found,
-                resolution=resolution,
-                force=force,
-                progress=progress,
-                metadata={"source": mesh_file.name},
-            )
-        stem = out.with_suffix("")
-        written = [save_rig(result.rig, out)]
-        written.append(result.report.save(report or stem.with_name(stem.name + ".fit.json")))
-        from mimetic.view import save_png
-        from mimetic.view.fitreport import fit_report_image
+    if landmarks is not None and auto_landmarks:
+        raise typer.BadParameter(
+            "give --landmarks FILE or --auto-landmarks, not both", param_hint="'--landmarks'"
+        )
+    _output(out, (".mrig",))
+    stem = out.with_suffix("")
+    report = _output(report or stem.with_name(stem.name + ".fit.json"), (".json",), "--report")
+    picture = _output(picture or stem.with_name(stem.name + ".fit.png"), IMAGE_OUTPUTS, "--picture")
+    mesh = load_mesh(mesh_file, units=None if units is None else units.value)
+    with _step_progress() as progress:
+        if landmarks is not None:
+            found = read_landmarks(landmarks, mesh_units=mesh.units)
+        else:
+            progress("landmarks (MediaPipe)", 0, 1)
+            found = find_landmarks(mesh)
+            progress("landmarks (MediaPipe)", 1, 1)
+        result = rig_head(
+            mesh,
+            found,
+            resolution=resolution,
+            force=force,
+            progress=progress,
+            metadata={"source": mesh_file.name},
+        )
+    from mimetic.view import save_image
+    from mimetic.view.fitreport import fit_report_image
 
-        written.append(save_png(fit_report_image(result), picture or stem.with_name(stem.name + ".fit.png")))
-    stdout.print(result.report.summary(), highlight=False)
+    written = [save_rig(result.rig, out), result.report.save(report)]
+    written.append(save_image(fit_report_image(result), picture))
+    stdout.print(result.report.summary())
     for path in written:
-        stdout.print(f"wrote {path}", highlight=False)
+        stdout.print(f"wrote {path}")
 
 
-def _parse_weights(items: list[str]) -> list[tuple[str, float]]:
-    """``--expr NAME`` or ``--expr NAME=WEIGHT`` (repeatable) → [(name, weight)]."""
-    from mimetic.animate.expressions import ExpressionError
-
-    out = []
-    for item in items:
-        name, sep, value = item.partition("=")
-        name = name.strip()
-        try:
-            weight = float(value) if sep else 1.0
-        except ValueError:
-            name = ""
-        if not name:
-            raise ExpressionError(f"--expr {item!r}: expected NAME or NAME=WEIGHT, e.g. --expr joy=0.7")
-        out.append((name, weight))
-    return out
+POSE_OUTPUTS = (*IMAGE_OUTPUTS, ".obj", ".ply", ".stl", ".glb", ".gltf")
 
 
-def _parse_values(items: list[str]) -> dict[str, float]:
-    """``--set CHANNEL=VALUE`` (repeatable) → {channel: value}."""
-    from mimetic.errors import ActivationError
-
-    return _name_values(items, "--set", "CHANNEL=VALUE", "jaw_open=0.2", ActivationError)
-
-
-POSE_OUTPUTS = (".png", ".obj", ".ply", ".stl", ".glb", ".gltf")
-
-
-@app.command()
+@command()
 def pose(
-    rig: Path = typer.Argument(..., help="A .mrig rig (e.g. from `mimetic head --rig`)."),
+    rig: Path = typer.Argument(
+        ..., metavar="RIG", help="A .mrig rig (e.g. from `mimetic head --rig` or `mimetic rig`)."
+    ),
     out: Path = typer.Option(
-        ..., "-o", "--out", help="A PNG render, or the posed mesh (.obj .ply .glb .gltf .stl)."
+        ...,
+        "-o",
+        "--out",
+        help="An image (.png .jpg), or the posed mesh (.obj .ply .stl in your own frame; .glb .gltf).",
     ),
     expr: list[str] = typer.Option(
-        [], "--expr", help="Blend an expression, NAME or NAME=WEIGHT (repeatable), e.g. --expr joy=0.7."
+        [], "--expr", metavar="NAME[=WEIGHT]", callback=_weights, help="Blend an expression (repeatable)."
     ),
     set_: list[str] = typer.Option(
         [],
         "--set",
-        help="Set a channel after the blend, CHANNEL=VALUE (repeatable), e.g. --set jaw_open=0.2.",
+        metavar="CHANNEL=VALUE",
+        callback=_values,
+        help="Set a channel after the blend (repeatable).",
     ),
-    engine: str = typer.Option("wire", "--engine", help="Deformation engine: wire or vector."),
-    view: str = typer.Option("front", "--view", help="front, three_quarter, profile, or all (a sheet)."),
-    size: int = typer.Option(512, "--size", help="Image size in pixels (per view)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Deformation engine."),
+    view: SheetView = typer.Option(
+        SheetView.front, "--view", help="For images: one view, or all three in a sheet."
+    ),
+    size: int = typer.Option(512, "--size", min=64, max=4096, help="Image size in pixels (per view)."),
     intensity: float = typer.Option(1.0, "--intensity", help="Scale the whole expression blend."),
     library: Path | None = typer.Option(
         None, "--library", help="An expression library JSON file (default: the built-in one)."
     ),
 ) -> None:
-    """Pose RIG with expressions and channel values; write a face render or the posed mesh."""
-    from mimetic.engines import ENGINES
+    """Pose RIG with expressions and channel values; write a face render or the posed mesh.
 
-    with _user_errors():
-        kind = out.suffix.lower()
-        if kind not in POSE_OUTPUTS:
-            raise MimeticError(
-                f"-o {out}: unsupported output {out.suffix or '(no extension)'!r}; "
-                f"use {', '.join(POSE_OUTPUTS)}"
-            )
-        if engine not in ENGINES:
-            raise MimeticError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
-        if view != "all" and view not in ("front", "three_quarter", "profile"):
-            raise MimeticError(f"--view {view!r} is not one of: all, front, three_quarter, profile")
-        if not 64 <= size <= 4096:
-            raise MimeticError(f"--size {size} is outside 64..4096 pixels")
-        weights, values = _parse_weights(expr), _parse_values(set_)
+    Names: mimetic list expressions, mimetic list channels RIG.
 
-        from mimetic.animate.expressions import compose_pose, load_library
-        from mimetic.rig.format import load_rig
-        from mimetic.view.sheets import posed_mesh, render_pose
+    Examples:
 
-        loaded = load_rig(rig)
-        lib = load_library(library, channels=loaded) if library is not None else None
-        values_c = compose_pose(loaded, weights, values, intensity=intensity, library=lib)
-        if kind == ".png":
-            from mimetic.view import save_png
+    \b
+      mimetic pose head.mrig --expr joy -o joy.png
+      mimetic pose head.mrig --expr joy=0.7 --expr surprise=0.3 --set jaw_open=0.2 -o joy.obj
+    """
+    from mimetic.animate.expressions import compose_pose, load_library
+    from mimetic.rig.format import load_rig
+    from mimetic.view.sheets import posed_mesh, render_pose
 
-            save_png(render_pose(loaded, engine, values_c, view=view, size=size), out)
-        else:
-            from mimetic.mesh.io import save_mesh
+    _output(out, POSE_OUTPUTS)
+    loaded = load_rig(rig)
+    lib = load_library(library, channels=loaded) if library is not None else None
+    values = compose_pose(loaded, _as_weights(expr), _as_values(set_), intensity=intensity, library=lib)
+    kind = out.suffix.lower()
+    if kind in IMAGE_OUTPUTS:
+        from mimetic.view import save_image
 
-            posed = posed_mesh(loaded, engine, values_c)
-            if kind in (".obj", ".ply", ".stl"):  # the user's own frame; glTF keeps its +Y up
-                posed = loaded.source_mesh(posed.vertices)
-            save_mesh(posed, out)
-    stdout.print(f"wrote {out}", highlight=False)
+        save_image(render_pose(loaded, engine.value, values, view=view.value, size=size), out)
+    else:
+        from mimetic.mesh.io import save_mesh
+
+        posed = posed_mesh(loaded, engine.value, values)
+        if kind in (".obj", ".ply", ".stl"):  # the user's own frame; glTF keeps its +Y up
+            posed = loaded.source_mesh(posed.vertices)
+        save_mesh(posed, out)
+    stdout.print(f"wrote {out}")
 
 
-clip_app = typer.Typer(help="Make and edit keyframed clips (JSON).", no_args_is_help=True)
+clip_app = typer.Typer(
+    help="Make and edit keyframed clips (JSON).", no_args_is_help=True, rich_markup_mode=None
+)
 app.add_typer(clip_app, name="clip")
 
 
-def _parse_pose_spec(item: str) -> tuple[float, dict[str, float] | None]:
-    """``TIME:EXPR[=W][+EXPR[=W]...]`` or ``TIME:rest`` → (time_s, {expression: weight} or None)."""
-    from mimetic.animate.clip import ClipError
-
-    time_text, sep, rest = item.partition(":")
-    try:
-        time_s = float(time_text.strip().removesuffix("s"))
-    except ValueError:
-        sep = ""
-    if not sep or not rest.strip():
-        raise ClipError(f"--pose {item!r}: expected TIME:EXPRESSION[=WEIGHT][+...], e.g. --pose 0.5:joy=0.8")
-    if rest.strip() == "rest":
-        return time_s, None
-    weights = {}
-    for part in rest.split("+"):
-        name, eq, value = part.partition("=")
-        try:
-            weights[name.strip()] = float(value) if eq else 1.0
-        except ValueError:
-            raise ClipError(
-                f"--pose {item!r}: weight {value!r} of {name.strip()!r} is not a number"
-            ) from None
-    return time_s, weights
-
-
-@clip_app.command("new")
+@command("new", parent=clip_app)
 def clip_new(
-    rig: Path = typer.Argument(..., help="The .mrig rig whose channels the clip drives."),
+    rig: Path = typer.Argument(..., metavar="RIG", help="The .mrig rig whose channels the clip drives."),
     pose: list[str] = typer.Option(
-        ..., "--pose", help="A key pose TIME:EXPRESSION[=WEIGHT][+...] or TIME:rest (repeatable)."
+        ...,
+        "--pose",
+        metavar="TIME:EXPR[=W][+...]",
+        callback=_poses,
+        help="A key pose, or TIME:rest (repeatable).",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="The clip JSON to write."),
-    interpolation: str = typer.Option("cubic", "--interpolation", help="step, linear, cubic or tcb."),
+    interpolation: Interpolation = typer.Option(Interpolation.cubic, "--interpolation", help="Between keys."),
 ) -> None:
-    """Make a clip through expression poses, e.g. --pose 0:rest --pose 0.5:joy --pose 1:rest."""
+    """Make a clip through expression poses.
+
+    Examples:
+
+    \b
+      mimetic clip new head.mrig --pose 0:rest --pose 0.5:joy --pose 1:rest -o clip.json
+      mimetic clip new head.mrig --pose 0:rest --pose 1:surprise=0.8+joy=0.2 --interpolation tcb -o c.json
+    """
     from mimetic.animate.clip import from_expressions, save_clip
     from mimetic.rig.format import load_rig
 
-    with _user_errors():
-        sequence = [_parse_pose_spec(item) for item in pose]
-        clip = from_expressions(load_rig(rig), sequence, interpolation=interpolation)
-        save_clip(clip, out)
-    stdout.print(f"wrote {out} ({clip.duration_s:g} s, {len(clip.channels)} channels)", highlight=False)
+    _output(out, (".json",))
+    sequence = [_pose_spec(item) for item in pose]
+    clip = from_expressions(load_rig(rig), sequence, interpolation=interpolation.value)
+    save_clip(clip, out)
+    stdout.print(f"wrote {out} ({clip.duration_s:g} s, {len(clip.channels)} channels)")
 
 
-@clip_app.command("edit")
+@command("edit", parent=clip_app)
 def clip_edit(
-    clip_file: Path = typer.Argument(..., help="The clip JSON to edit."),
+    clip_file: Path = typer.Argument(..., metavar="CLIP", help="The clip JSON to edit."),
     key: list[str] = typer.Option(
-        ..., "--key", help="A new key CHANNEL@TIME=VALUE the edited curve must pass through (repeatable)."
+        ...,
+        "--key",
+        metavar="CHANNEL@TIME=VALUE",
+        callback=_keys,
+        help="A new key the edited curve must pass through (repeatable).",
     ),
     out: Path = typer.Option(..., "-o", "--out", help="The edited clip JSON to write."),
     knot_spacing: float = typer.Option(
-        0.25, "--knot-spacing", help="B-spline knot spacing in seconds: how far each edit reaches."
+        0.25, "--knot-spacing", min=1e-3, help="B-spline knot spacing in seconds: how far each edit reaches."
     ),
     layer: str = typer.Option("edit", "--layer", help="The edit layer to add the displacement to."),
 ) -> None:
-    """Edit curves by a smooth B-spline displacement through new keys, kept in its own layer."""
+    """Edit curves by a smooth B-spline displacement through new keys, kept in its own layer.
+
+    Examples:
+
+    \b
+      mimetic clip edit clip.json --key jaw_open@0.75=0.3 -o edited.json
+      mimetic clip edit clip.json --key jaw_open@0.5=0.2 --key jaw_open@1=0 --knot-spacing 0.1 -o e.json
+    """
     from mimetic.animate.clip import load_clip, parse_key_spec, save_clip
 
-    with _user_errors():
-        clip = load_clip(clip_file)
-        by_channel: dict[str, dict[float, float]] = {}
-        for item in key:
-            channel, time_s, value = parse_key_spec(item)
-            by_channel.setdefault(channel, {})[time_s] = value
-        for channel, constraints in by_channel.items():
-            clip = clip.edit(channel, constraints, knot_spacing_s=knot_spacing, layer=layer)
-        save_clip(clip, out)
-    stdout.print(f"wrote {out} ({len(key)} keys in layer {layer!r})", highlight=False)
+    _output(out, (".json",))
+    clip = load_clip(clip_file)
+    by_channel: dict[str, dict[float, float]] = {}
+    for item in key:
+        channel, time_s, value = parse_key_spec(item)
+        by_channel.setdefault(channel, {})[time_s] = value
+    for channel, constraints in by_channel.items():
+        clip = clip.edit(channel, constraints, knot_spacing_s=knot_spacing, layer=layer)
+    save_clip(clip, out)
+    stdout.print(f"wrote {out} ({len(key)} keys in layer {layer!r})")
 
 
 ANIMATE_OUTPUTS = (".mp4", ".glb", ".usda", ".usdc", ".usd")
@@ -497,113 +714,208 @@ def _write_scene(rig, out: Path, targets: dict, clip=None) -> Path:
     return export_usd(rig, out, morph_targets=targets, clip=clip)
 
 
-@app.command()
+@command()
 def animate(
-    rig: Path = typer.Argument(..., help="The .mrig rig to animate."),
+    rig: Path = typer.Argument(..., metavar="RIG", help="The .mrig rig to animate."),
     clip: Path = typer.Option(..., "--clip", help="A clip JSON (from `mimetic clip new` or the API)."),
     out: Path = typer.Option(
         ..., "-o", "--out", help="anim.mp4 (a rendered video), anim.glb or anim.usda/.usdc (UsdSkel)."
     ),
-    fps: float = typer.Option(30.0, "--fps", help="Frames per second of the output."),
-    size: int = typer.Option(512, "--size", help="Video size in pixels (square, 64..2160)."),
+    fps: float = typer.Option(30.0, "--fps", min=1e-3, max=240.0, help="Frames per second of the output."),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
     audio: Path | None = typer.Option(None, "--audio", help="A sound track for the video (WAV, …)."),
-    engine: str = typer.Option("wire", "--engine", help="Deformation engine for the video: wire or vector."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Deformation engine."),
 ) -> None:
-    """Play a clip on a rig: render an MP4 (with optional audio) or export an animated GLB or USD."""
+    """Play a clip on a rig: render an MP4 (with optional audio) or export an animated GLB or USD.
+
+    Examples:
+
+    \b
+      mimetic animate head.mrig --clip clip.json -o anim.mp4 --audio speech.wav
+      mimetic animate head.mrig --clip clip.json --fps 60 -o anim.glb
+    """
     from mimetic.animate.clip import load_clip
     from mimetic.rig.format import load_rig
 
-    with _user_errors():
-        kind = out.suffix.lower()
-        if kind not in ANIMATE_OUTPUTS:
-            raise MimeticError(f"-o {out}: use one of {', '.join(ANIMATE_OUTPUTS)}")
-        if not 0 < fps <= 240:
-            raise MimeticError(f"--fps {fps} is outside (0, 240]")
-        loaded = load_rig(rig)
-        sampled = load_clip(clip).sample(fps, channels=loaded)
-        if kind == ".mp4":
-            from mimetic.engines import ENGINES
-            from mimetic.view.video import render_clip
+    _output(out, ANIMATE_OUTPUTS)
+    loaded = load_rig(rig)
+    sampled = load_clip(clip).sample(fps, channels=loaded)
+    if out.suffix.lower() == ".mp4":
+        from mimetic.view.video import render_clip
 
-            if engine not in ENGINES:
-                raise MimeticError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
-            with _progress("video") as progress:
-                render_clip(loaded, sampled, out, engine=engine, size=size, audio=audio, progress=progress)
-        else:
-            with _progress("bake") as progress:
-                targets = _muscle_targets(loaded, engine, progress)
-            _write_scene(loaded, out, targets, sampled)
-    stdout.print(f"wrote {out} ({sampled.n_frames} frames at {fps:g} fps)", highlight=False)
+        with _progress("video") as progress:
+            render_clip(loaded, sampled, out, engine=engine.value, size=size, audio=audio, progress=progress)
+    else:
+        with _progress("bake") as progress:
+            targets = _muscle_targets(loaded, engine.value, progress)
+        _write_scene(loaded, out, targets, sampled)
+    stdout.print(f"wrote {out} ({sampled.n_frames} frames at {fps:g} fps)")
 
 
 def _muscle_targets(rig, engine: str, progress) -> dict:
-    """One morph target per muscle channel (the baked basis), for GLB export."""
-    from mimetic.engines import ENGINES, make_engine
+    """One morph target per muscle channel (the baked basis), for GLB and USD export."""
+    from mimetic.engines import make_engine
     from mimetic.engines.bake import bake
     from mimetic.export.gltf import morph_targets_from_basis
 
-    if engine not in ENGINES:
-        raise MimeticError(f"--engine {engine!r} is not one of: {', '.join(ENGINES)}")
     progress(0, 1)
     basis = bake(make_engine(rig, engine)).basis
     progress(1, 1)
     return morph_targets_from_basis(basis, rig)
 
 
-@app.command("export")
+@command("export")
 def export_command(
-    rig: Path = typer.Argument(..., help="The .mrig rig to export."),
+    rig: Path = typer.Argument(..., metavar="RIG", help="The .mrig rig to export."),
     out: Path = typer.Option(..., "-o", "--out", help="The .glb (or .usda/.usdc, UsdSkel) file to write."),
     arkit: bool = typer.Option(
         False, "--arkit", help="Morph targets are the 52 ARKit blendshapes (else one per muscle)."
     ),
     obj_dir: Path | None = typer.Option(
-        None, "--obj-dir", help="Also write each morph target as a posed OBJ into this folder."
+        None,
+        "--obj-dir",
+        help="Also write each morph target as a posed OBJ (your own frame) into this folder.",
     ),
-    engine: str = typer.Option("wire", "--engine", help="Deformation engine: wire or vector."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Deformation engine."),
 ) -> None:
-    """Export a rig as GLB or USD with named morph targets and its skeleton (ARKit-52 with --arkit)."""
+    """Export a rig as GLB or USD with named morph targets and its skeleton (ARKit-52 with --arkit).
+
+    Examples:
+
+    \b
+      mimetic export head.mrig -o head.glb
+      mimetic export head.mrig --arkit -o head_arkit.usdc --obj-dir arkit_shapes/
+    """
     from mimetic.rig.format import load_rig
 
-    with _user_errors():
-        if out.suffix.lower() not in SCENE_OUTPUTS:
-            raise MimeticError(f"-o {out}: export writes {', '.join(SCENE_OUTPUTS)}")
-        loaded = load_rig(rig)
-        with _progress("bake") as progress:
-            if arkit:
-                from mimetic.export.arkit import arkit_shapes
-
-                progress(0, 1)
-                targets = arkit_shapes(loaded, engine=engine)
-                progress(1, 1)
-            else:
-                targets = _muscle_targets(loaded, engine, progress)
-        written = [_write_scene(loaded, out, targets)]
-        if obj_dir is not None:
-            from mimetic.mesh.io import save_mesh
-
-            obj_dir.mkdir(parents=True, exist_ok=True)
-            rest = loaded.mesh.vertices
-            for name, delta in targets.items():  # in the user's own frame, on top of their mesh at rest
-                written.append(save_mesh(loaded.source_mesh(rest + delta), obj_dir / f"{name}.obj"))
-    stdout.print(f"wrote {out} ({len(targets)} morph targets)", highlight=False)
+    _output(out, SCENE_OUTPUTS)
     if obj_dir is not None:
-        stdout.print(f"wrote {len(written) - 1} OBJs to {obj_dir}", highlight=False)
+        _folder_of(obj_dir)
+    loaded = load_rig(rig)
+    with _progress("bake") as progress:
+        if arkit:
+            from mimetic.export.arkit import arkit_shapes
+
+            progress(0, 1)
+            targets = arkit_shapes(loaded, engine=engine.value)
+            progress(1, 1)
+        else:
+            targets = _muscle_targets(loaded, engine.value, progress)
+    written = [_write_scene(loaded, out, targets)]
+    if obj_dir is not None:
+        from mimetic.mesh.io import save_mesh
+
+        obj_dir.mkdir(exist_ok=True)
+        rest = loaded.mesh.vertices
+        for name, delta in targets.items():  # in the user's own frame, on top of their mesh at rest
+            written.append(save_mesh(loaded.source_mesh(rest + delta), obj_dir / f"{name}.obj"))
+    stdout.print(f"wrote {out} ({len(targets)} morph targets)")
+    if obj_dir is not None:
+        stdout.print(f"wrote {len(written) - 1} OBJs to {obj_dir}")
 
 
-@app.command()
+LISTS = ("expressions", "channels", "muscles", "controls", "facs", "arkit")
+ListName = Enum("ListName", {n: n for n in LISTS}, type=str)
+
+
+@command("list")
+def list_command(
+    what: ListName = typer.Argument(
+        ..., metavar="WHAT", help="expressions, channels, muscles, controls, facs or arkit."
+    ),
+    rig: Path | None = typer.Argument(
+        None, metavar="RIG", help="A .mrig rig (channels and muscles; default: the built-in head's rig)."
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print the rows as JSON."),
+) -> None:
+    """List the names a command takes: expressions, channels (with ranges and units), muscles,
+    descriptive controls, FACS action units or ARKit-52 shapes.
+
+    Examples:
+
+    \b
+      mimetic list expressions
+      mimetic list channels my_head.mrig --json
+    """
+    columns, rows = _list_rows(what.value, rig)
+    if as_json:
+        stdout.print_json(json.dumps([dict(zip(columns, row, strict=True)) for row in rows]))
+        return
+    table = Table(*columns, title=f"{len(rows)} {what.value}", title_justify="left")
+    for row in rows:
+        table.add_row(*(str(c) for c in row))
+    stdout.print(table)
+
+
+def _list_rows(what: str, rig_file: Path | None) -> tuple[tuple[str, ...], list[tuple]]:
+    if what == "expressions":
+        from mimetic.animate.expressions import load_library
+
+        library = load_library()
+        return ("name", "facs", "description"), [
+            (n, library[n].facs, library[n].description) for n in library.names
+        ]
+    if what == "controls":
+        from mimetic.animate.controls import descriptive_controls
+
+        return ("name", "muscle", "paired", "description"), [
+            (c.name, c.muscle, "L/R" if c.paired else "-", c.description) for c in descriptive_controls()
+        ]
+    if what == "facs":
+        from mimetic.animate.facs import action_units
+
+        return ("au", "name", "sides", "status", "note"), [
+            (f"AU{u.number}", u.name, u.sides, u.status, u.note) for u in action_units().values()
+        ]
+    if what == "arkit":
+        from mimetic.animate.arkit import arkit_table
+
+        return ("name", "status", "description"), [
+            (name, s.status, s.description) for name, s in arkit_table().items()
+        ]
+    rig = _rig_or_default(rig_file)
+    if what == "channels":
+        return ("name", "minimum", "maximum", "default", "unit", "group"), [
+            (c.name, c.minimum, c.maximum, c.default, c.unit, c.group) for c in rig.channels
+        ]
+    return ("name", "kind", "side", "region"), [(m.name, m.kind, m.side, m.region or "") for m in rig.muscles]
+
+
+def _rig_or_default(rig_file: Path | None):
+    if rig_file is not None:
+        from mimetic.rig.format import load_rig
+
+        return load_rig(rig_file)
+    from mimetic.head.model import make_head
+    from mimetic.rig.recipe import build_rig
+
+    return build_rig(make_head(resolution=1_500))
+
+
+@command()
 def demo(
     out: Path = typer.Option(Path("mimetic-demo"), "-o", "--out", help="Folder for the demo outputs."),
-    resolution: int = typer.Option(10_000, "--resolution", help="Approximate skin vertex count."),
+    resolution: int = typer.Option(
+        10_000, "--resolution", min=1_500, max=250_000, help="Approximate skin vertex count."
+    ),
 ) -> None:
-    """Generate the default head and 8 random heads, rig them, and write meshes, rigs and sheets."""
+    """Generate the default head and 8 random heads, rig, pose and animate them, and write meshes,
+    rigs, sheets, an animated GLB, an MP4 and the ARKit-52 bake.
+
+    Examples:
+
+    \b
+      mimetic demo
+      mimetic demo -o /tmp/demo --resolution 4000
+    """
     from mimetic.demo import run_demo
 
-    with _user_errors(), _progress("demo: heads and rigs") as progress:
+    _folder_of(out)
+    with _progress("demo") as progress:
         result = run_demo(out, resolution=resolution, progress=progress)
     table = Table("file", "size", title=f"mimetic demo → {result.out_dir}")
     for path in result.files:
         table.add_row(str(path), f"{path.stat().st_size / 1024:,.0f} KB")
     stdout.print(table)
     for note in result.notes:
-        stdout.print(f"note: {note}", highlight=False)
+        stdout.print(f"note: {note}")

@@ -55,7 +55,11 @@ def run_demo(
     size: int = 384,
     progress: Progress | None = None,
 ) -> DemoResult:
-    """Generate the default head and ``seeds`` random heads, rig and render them into ``out_dir``."""
+    """Generate the default head and ``seeds`` random heads, rig and render them into ``out_dir``.
+
+    ``progress(done, total)`` is called after each head, each sheet, each expression and each
+    animation output (about 35 steps of similar length).
+    """
     out = Path(out_dir)
     (out / "heads").mkdir(parents=True, exist_ok=True)
     (out / "rigs").mkdir(parents=True, exist_ok=True)
@@ -63,9 +67,15 @@ def run_demo(
     files: list[Path] = []
     tiles = []
     jobs: list[int | None] = [None, *seeds]
-    total = len(jobs) + 2
+    total = len(jobs) + 4 + len(load_library().names) + len(ANIMATION_STEPS)  # heads, sheets, ...
+    steps = iter(range(1, total + 1))
+
+    def tick() -> None:
+        if progress:
+            progress(next(steps), total)
+
     default_rig: Rig | None = None
-    for done, seed in enumerate(jobs):
+    for seed in jobs:
         params = HeadParams() if seed is None else HeadParams.random(seed)
         head = make_head(params, resolution)
         rig = build_rig(head)
@@ -87,26 +97,24 @@ def run_demo(
         tiles.append(
             (f"{label}: three-quarter", render_rig(rig, "three_quarter", size=size, renderer=renderer))
         )
-        if progress:
-            progress(done + 1, total)
+        tick()
     files.append(save_png(contact_sheet(tiles, columns=6), out / "heads_muscles.png"))
     assert default_rig is not None  # jobs start with the default head
     engines = {name: make_engine(default_rig, name) for name in ("wire", "vector")}
-    files += _action_sheets(default_rig, engines, out, renderer)
-    if progress:
-        progress(total - 1, total)
-    files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer)
-    files += _animation(default_rig, engines["wire"], out, renderer)
-    if progress:
-        progress(total, total)
+    files += _action_sheets(default_rig, engines, out, renderer, tick)
+    files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer, tick)
+    files += _animation(default_rig, engines["wire"], out, renderer, tick)
     return DemoResult(out, tuple(files))
 
 
 ANIMATION = ((0.0, "rest"), (1.0, "joy"), (2.0, "surprise"), (3.0, "anger"), (4.0, "sadness"), (5.0, "rest"))
 ANIMATION_FPS = 30
+ANIMATION_STEPS = ("bake", "clip and GLB", "MP4", "ARKit-52 GLB")
 
 
-def _animation(rig: Rig, engine: Engine, out: Path, renderer: Renderer) -> list[Path]:
+def _animation(
+    rig: Rig, engine: Engine, out: Path, renderer: Renderer, tick: Callable[[], None]
+) -> list[Path]:
     """An expression sequence as a clip, an animated GLB, an MP4; and the ARKit-52 GLB."""
     from mimetic.animate.clip import from_expressions, save_clip
     from mimetic.engines.bake import bake
@@ -117,32 +125,45 @@ def _animation(rig: Rig, engine: Engine, out: Path, renderer: Renderer) -> list[
     keys = from_expressions(rig, list(ANIMATION))
     clip = keys.sample(ANIMATION_FPS, channels=rig)
     basis = bake(engine).basis
-    return [
-        save_clip(keys, out / "animation.clip.json"),
-        export_glb(rig, out / "animation.glb", morph_targets=morph_targets_from_basis(basis, rig), clip=clip),
-        render_clip(rig, clip, out / "animation.mp4", basis=basis, size=512, renderer=renderer),
-        export_glb(rig, out / "head_arkit.glb", morph_targets=arkit_shapes(engine)),
-    ]
+    tick()
+    files = [save_clip(keys, out / "animation.clip.json")]
+    targets = morph_targets_from_basis(basis, rig)
+    files.append(export_glb(rig, out / "animation.glb", morph_targets=targets, clip=clip))
+    tick()
+    files.append(render_clip(rig, clip, out / "animation.mp4", basis=basis, size=512, renderer=renderer))
+    tick()
+    files.append(export_glb(rig, out / "head_arkit.glb", morph_targets=arkit_shapes(engine)))
+    tick()
+    return files
 
 
 def _action_sheets(
-    rig: Rig, engines: dict[str, Engine], out: Path, renderer: Renderer, tile: int = 256
+    rig: Rig,
+    engines: dict[str, Engine],
+    out: Path,
+    renderer: Renderer,
+    tick: Callable[[], None],
+    tile: int = 256,
 ) -> list[Path]:
     """The muscle sheet and the expression sheet of each engine (the wire one is ``expressions.png``)."""
     files = []
     for name, engine in engines.items():
         sheet = muscle_sheet(rig, engine, size=tile, renderer=renderer)
         files.append(save_png(sheet, out / f"muscles_{name}.png"))
+        tick()
     library = load_library()
     for name, engine in engines.items():
         sheet = expression_sheet(rig, engine, library, size=tile, renderer=renderer)
         files.append(
             save_png(sheet, out / ("expressions.png" if name == "wire" else f"expressions_{name}.png"))
         )
+        tick()
     return files
 
 
-def _expressions(rig: Rig, engine: Engine, folder: Path, size: int, renderer: Renderer) -> list[Path]:
+def _expressions(
+    rig: Rig, engine: Engine, folder: Path, size: int, renderer: Renderer, tick: Callable[[], None]
+) -> list[Path]:
     """Each library expression posed by ``engine``: ``NAME.obj`` (all parts) and a front ``NAME.png``."""
     folder.mkdir(parents=True, exist_ok=True)
     files = []
@@ -151,4 +172,5 @@ def _expressions(rig: Rig, engine: Engine, folder: Path, size: int, renderer: Re
         files.append(save_mesh(rig.mesh.with_vertices(engine.deform(values)), folder / f"{name}.obj"))
         image = render_pose(rig, engine, values, view="front", size=size, renderer=renderer)
         files.append(save_png(image, folder / f"{name}.png"))
+        tick()
     return files

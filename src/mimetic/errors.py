@@ -45,5 +45,18 @@ class MissingExtraError(MimeticError, ImportError):
     """An optional dependency is not installed; the message names the extra to install."""
 
 
+def install_hint(extra: str) -> str:
+    """The command that installs one of mimetic's extras (e.g. "track") where mimetic runs from:
+    ``pip install -e '.[track]'`` in a source checkout (run in its folder), else
+    ``pip install 'mimetic[track]'``."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    pyproject = root / "pyproject.toml"
+    if pyproject.is_file() and 'name = "mimetic"' in pyproject.read_text(encoding="utf-8", errors="replace"):
+        return f"pip install -e '.[{extra}]' (in {root})"
+    return f"pip install 'mimetic[{extra}]'"
+
+
 class MimeticWarning(UserWarning):
     """Input that is suspect but usable, or a solver that did not converge."""

@@ -65,10 +65,23 @@ def test_detect_units_wrong_shape_raises_value_error():
 
 @given(
     extent_m=st.floats(PLAUSIBLE_EXTENT_M[0] * (1 + 1e-9), PLAUSIBLE_EXTENT_M[1] * (1 - 1e-9)),
-    unit=st.sampled_from(sorted(UNIT_SCALE)),
+    unit=st.sampled_from(["mm", "cm", "dm", "m"]),  # inches are never guessed (see the next test)
 )
 def test_units_for_extent_plausible_head_recovers_its_unit(extent_m, unit):
     assert units_for_extent(extent_m / UNIT_SCALE[unit]) == unit
+
+
+def test_units_for_extent_never_guesses_inches():
+    """A head 9.2 units tall: a 23 cm head in inches, or a 9.2 cm face mask; detection says cm."""
+    assert units_for_extent(9.2) == "cm"
+
+
+def test_convert_units_inches_to_millimetres_and_back():
+    inch = np.ones((1, 3))
+    np.testing.assert_allclose(convert_units(inch, "in", "mm"), np.full((1, 3), 25.4), rtol=1e-15)
+    np.testing.assert_allclose(
+        convert_units(np.full((1, 3), 254.0), "mm", "in"), np.full((1, 3), 10.0), rtol=1e-15
+    )
 
 
 @given(extent=st.floats(1e-12, 1e12))
@@ -112,7 +125,7 @@ def test_convert_units_dm_to_mm_is_exact_hundred():
     np.testing.assert_array_equal(convert_units(np.ones((1, 3)), "dm", "mm"), np.full((1, 3), 100.0))
 
 
-@pytest.mark.parametrize("bad", ["inch", "CM", "", "meters"])
+@pytest.mark.parametrize("bad", ["inches", "CM", "", "meters"])
 def test_convert_units_unknown_unit_raises_listing_allowed(bad):
     with pytest.raises(MeshError, match="'mm', 'cm', 'dm', 'm'"):
         convert_units(np.zeros((1, 3)), bad, "m")

@@ -64,7 +64,7 @@ import numpy as np
 
 from mimetic.atomic import WriteError, atomic_path
 from mimetic.engines.skinning import bone_transforms
-from mimetic.errors import MimeticWarning, MissingExtraError, RigError
+from mimetic.errors import MimeticWarning, MissingExtraError, RigError, install_hint
 from mimetic.export.gltf import (
     MAX_INFLUENCES,
     MOTION_TOL_REL,
@@ -81,8 +81,6 @@ from mimetic.rig.activations import Clip
 from mimetic.rig.model import Rig
 
 log = logging.getLogger(__name__)
-
-INSTALL_HINT = "USD export needs the optional extra: pip install 'mimetic[usd]' (usd-core)"
 
 SUFFIXES = (".usda", ".usdc", ".usd")
 """File suffixes ``export_usd`` writes: text, binary (crate), and binary under the generic suffix."""
@@ -101,7 +99,10 @@ def _import_pxr() -> SimpleNamespace:
     try:
         from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
     except ImportError as error:
-        raise MissingExtraError(f"{INSTALL_HINT}; importing pxr failed: {error}") from error
+        raise MissingExtraError(
+            f"USD export needs the optional extra [usd] (usd-core): {install_hint('usd')}; "
+            f"importing pxr failed: {error}"
+        ) from error
     return SimpleNamespace(Gf=Gf, Sdf=Sdf, Usd=Usd, UsdGeom=UsdGeom, UsdSkel=UsdSkel, Vt=Vt)
 
 
@@ -507,7 +508,9 @@ def check_usd(path: str | os.PathLike[str]) -> list[UsdIssue]:
     try:
         from pxr import UsdValidation
     except ImportError as error:
-        raise MissingExtraError(f"{INSTALL_HINT}; this usd-core has no UsdValidation ({error})") from error
+        raise MissingExtraError(
+            f"this usd-core has no UsdValidation ({error}); reinstall the [usd] extra: {install_hint('usd')}"
+        ) from error
     path = Path(path)
     try:
         stage = pxr.Usd.Stage.Open(str(path))

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimetic.errors import LandmarkError, MissingExtraError
+from mimetic.errors import LandmarkError, MissingExtraError, install_hint
 from mimetic.head.landmarks import MEDIAPIPE as MEDIAPIPE_POINTS
 
 log = logging.getLogger(__name__)
@@ -38,7 +38,6 @@ log = logging.getLogger(__name__)
 __all__ = ["MEDIAPIPE_POINTS", "N_LANDMARKS", "FaceDetection", "MissingExtraError", "detect_face"]
 
 N_LANDMARKS = 478  # FaceMesh with refine_landmarks=True: 468 face points + 2 x 5 iris points
-INSTALL_HINT = "face tracking needs the optional extra: pip install 'mimetic[track]' (mediapipe==0.10.14)"
 
 # What mediapipe's C++ side (absl logging, TF Lite) writes to stderr while it builds its graphs
 # and loads its models; the environment variables GLOG_minloglevel / TF_CPP_MIN_LOG_LEVEL do not
@@ -140,7 +139,10 @@ def _detectors():
     try:
         import mediapipe as mp
     except ImportError as error:
-        raise MissingExtraError(f"{INSTALL_HINT}; importing mediapipe failed: {error}") from error
+        raise MissingExtraError(
+            f"face tracking needs the optional extra [track] (mediapipe==0.10.14): {install_hint('track')}; "
+            f"importing mediapipe failed: {error}"
+        ) from error
     imported = time.perf_counter()
     with _StderrFilter(), warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=_PROTOBUF_WARNING, category=UserWarning)

@@ -28,7 +28,7 @@ from mimetic.head.model import DEFAULT_RESOLUTION
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import convert_units, detect_units
 from mimetic.mesh.validate import validate_mesh
-from mimetic.mesh.weld import Weld, find_weld, seam_vertices
+from mimetic.mesh.weld import SEAM_AREA_SHARE, Weld, find_weld, seam_vertices
 from mimetic.mesh.winding import winding_flips
 from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
@@ -138,7 +138,7 @@ def rig_head(
             stacklevel=2,
         )
     faces = mesh.faces.copy()  # the user's faces as the rig will have them
-    reversed_faces = winding_flips(weld.mesh.vertices, weld.mesh.faces)
+    reversed_faces = winding_flips(weld.mesh.vertices, weld.mesh.faces, min_share=SEAM_AREA_SHARE)
     if reversed_faces.any():
         warnings.warn(
             f"{int(reversed_faces.sum()):,} faces wind against their neighbours (a patch turned inside out, "

@@ -61,12 +61,14 @@ DEFAULT_COLOR = 0.6
 """Grey given to vertices of glTF nodes without COLOR_0 when other nodes have it."""
 
 _UNIT_ALIASES = {
-    **{u: u for u in ("mm", "cm", "dm", "m")},
+    **{u: u for u in ("mm", "cm", "dm", "m", "in")},
     **{
         f"{p}{s}": u
         for p, u in (("millimet", "mm"), ("centimet", "cm"), ("decimet", "dm"), ("met", "m"))
         for s in ("er", "ers", "re", "res")
     },
+    "inch": "in",
+    "inches": "in",
 }
 
 
@@ -92,11 +94,11 @@ def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: 
     ----------
     path : path-like
         A .obj, .ply, .stl, .glb or .gltf file (a .gltf may refer to .bin files beside it).
-    units : {"mm", "cm", "dm", "m"}, optional
+    units : {"mm", "cm", "dm", "m", "in"}, optional
         The unit the coordinates are in. It wins over anything else; the coordinates are never
         rescaled (use :func:`~mimetic.mesh.units.convert_units` for that). When omitted, the units
         written in the file are used (see the module table), else :func:`detect_units` guesses
-        them from the head's size.
+        them from the head's size, with a ``MimeticWarning`` that says the guess.
     check : bool
         When True (default), reject meshes every later step would fail on: non-finite
         coordinates, fewer than ``MIN_FACES`` faces, or units that are neither given, stored nor
@@ -144,12 +146,20 @@ def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: 
         _check_loaded(vertices, m, src)
     units = units or _file_units(loaded.units, vertices, src)
     if units is None:
-        units = units_for_extent(largest_extent(vertices))
+        extent = largest_extent(vertices)
+        units = units_for_extent(extent)
         if units is None and check:  # re-run to raise detect_units' own message
             try:
                 detect_units(vertices)
             except MeshError as error:
                 raise MeshError(f"{src}: {error}") from None
+        if units is not None:
+            warnings.warn(
+                f"{src} does not say its units; its size ({extent:.4g} across) suggests {units}. If that "
+                f'is wrong, give them: units="cm" (CLI --units cm; mm, cm, dm, m or in)',
+                MimeticWarning,
+                stacklevel=2,
+            )
     mesh = Mesh(vertices, faces, loaded.parts, loaded.colors, units, loaded.materials)
     log.info("loaded %s: %d vertices, %d faces, %d parts, units %s", src, n, m, len(mesh.parts), units)
     return mesh

@@ -1,10 +1,12 @@
 """Length units of a mesh: check them, guess them from the size of a head, convert between them.
 
 A human head is about 20–26 cm from chin to crown (up to ~30 cm with some neck), and a face-only
-mask 12–20 cm. :func:`detect_units` picks the unit that puts the mesh's largest bounding-box
+mask 12–20 cm. :func:`detect_units` picks the metric unit that puts the mesh's largest bounding-box
 extent closest to a typical head size (22 cm, on a log scale) and accepts it when the result lies
 in ``PLAUSIBLE_EXTENT_M``. That window is one decade wide and centred on 22 cm, so exactly one
-unit can ever match: there are no ties and no gaps between units.
+metric unit can ever match: there are no ties and no gaps between units. Inches ("in") are
+accepted when a user or a file says so, never guessed: a head 9 units tall would be a 9 cm face
+mask or a 23 cm head in inches, and the size cannot tell which.
 """
 
 from __future__ import annotations
@@ -15,10 +17,10 @@ import numpy as np
 
 from mimetic.errors import MeshError
 
-UNIT_SCALE: dict[str, float] = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0}
+UNIT_SCALE: dict[str, float] = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0, "in": 0.0254}
 """Metres per unit."""
 
-_DECADE = {"mm": -3, "cm": -2, "dm": -1, "m": 0}  # log10 of UNIT_SCALE, exact
+_DECADE = {"mm": -3, "cm": -2, "dm": -1, "m": 0}  # log10 of UNIT_SCALE for the metric units, exact
 
 TYPICAL_HEAD_EXTENT_M = 0.22
 """Largest bounding-box extent of a typical head mesh, in metres."""
@@ -28,7 +30,7 @@ PLAUSIBLE_EXTENT_M = (TYPICAL_HEAD_EXTENT_M / math.sqrt(10.0), TYPICAL_HEAD_EXTE
 
 
 def check_units(units: str) -> str:
-    """Return ``units`` if it is one of ``UNIT_SCALE`` ("mm", "cm", "dm", "m"); else raise MeshError."""
+    """Return ``units`` if it is one of ``UNIT_SCALE`` ("mm", "cm", "dm", "m", "in"); else raise MeshError."""
     if not isinstance(units, str) or units not in UNIT_SCALE:
         raise MeshError(f"unknown units {units!r}; use one of {', '.join(map(repr, UNIT_SCALE))}.")
     return units
@@ -49,14 +51,14 @@ def largest_extent(vertices: np.ndarray) -> float:
 
 
 def units_for_extent(extent: float) -> str | None:
-    """The unit in which a largest extent ``extent`` (in unknown units) is a plausible head size.
+    """The metric unit in which a largest extent ``extent`` (in unknown units) is a plausible head size.
 
-    Returns None when no unit in ``UNIT_SCALE`` gives an extent inside ``PLAUSIBLE_EXTENT_M``.
+    Returns None when no metric unit gives an extent inside ``PLAUSIBLE_EXTENT_M``.
     """
     if not math.isfinite(extent) or extent <= 0.0:
         return None
     log_typical = math.log(TYPICAL_HEAD_EXTENT_M)
-    unit = min(UNIT_SCALE, key=lambda u: abs(math.log(extent * UNIT_SCALE[u]) - log_typical))
+    unit = min(_DECADE, key=lambda u: abs(math.log(extent * UNIT_SCALE[u]) - log_typical))
     low, high = PLAUSIBLE_EXTENT_M
     return unit if low <= extent * UNIT_SCALE[unit] < high else None
 
@@ -110,9 +112,13 @@ def convert_units(vertices: np.ndarray, from_units: str, to_units: str) -> np.nd
     MeshError
         A unit is not one of ``UNIT_SCALE``.
     """
-    # 10 ** integer is exact for the ratios >= 1, and the nearest double otherwise
-    # (0.1 / 0.001 would give 100.00000000000001).
-    scale = 10.0 ** (_DECADE[check_units(from_units)] - _DECADE[check_units(to_units)])
+    check_units(from_units), check_units(to_units)
+    if from_units in _DECADE and to_units in _DECADE:
+        # 10 ** integer is exact for the ratios >= 1, and the nearest double otherwise
+        # (0.1 / 0.001 would give 100.00000000000001).
+        scale = 10.0 ** (_DECADE[from_units] - _DECADE[to_units])
+    else:
+        scale = UNIT_SCALE[from_units] / UNIT_SCALE[to_units]
     vertices = np.asarray(vertices, dtype=np.float64)
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise ValueError(f"vertices must have shape (n, 3); got {vertices.shape}")

@@ -19,13 +19,16 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 from mimetic.mesh.geometry import face_normals
 
 
-def winding_flips(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def winding_flips(vertices: np.ndarray, faces: np.ndarray, *, min_share: float = 0.0) -> np.ndarray:
     """Which faces to turn (reverse their corner order) so every connected piece winds consistently.
 
     Parameters
     ----------
     vertices : (n, 3) float64
     faces : (m, 3) int64
+    min_share : float
+        Leave pieces holding less than this share of the total area alone (thin films and cards
+        touching at their borders, as an eye's tear line and occlusion shell, may face either way).
 
     Returns
     -------
@@ -74,4 +77,5 @@ def winding_flips(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     area = 0.5 * np.linalg.norm(face_normals(vertices, faces, unit=False), axis=1)
     odd = np.bincount(piece, weights=area * parity, minlength=n_pieces)
     total = np.bincount(piece, weights=area, minlength=n_pieces)
-    return parity ^ (odd > 0.5 * total)[piece]  # turn the smaller side
+    parity ^= (odd > 0.5 * total)[piece]  # turn the smaller side
+    return parity & (total >= min_share * total.sum())[piece]

@@ -29,7 +29,7 @@ from mimetic.mesh.model import Mesh, SurfacePoint
 ChannelUnit = Literal["activation", "rad", "rel"]
 MuscleKind = Literal["linear", "sphincter", "sheet"]
 Side = Literal["L", "R", "C"]
-Units = Literal["mm", "cm", "dm", "m"]
+Units = Literal["mm", "cm", "dm", "m", "in"]
 
 CHANNEL_UNITS: tuple[str, ...] = get_args(ChannelUnit)
 MUSCLE_KINDS: tuple[str, ...] = get_args(MuscleKind)
@@ -497,7 +497,7 @@ class Rig:
     ----------
     mesh : Mesh
         The rest mesh, vertices (n, 3) float64 in ``units``; its vertex order is never changed.
-    units : "mm" | "cm" | "dm" | "m"
+    units : "mm" | "cm" | "dm" | "m" | "in"
         Length unit of the mesh and of every absolute length in the rig.
     scale : float
         > 0, the head height in ``units``; ``_rel`` lengths are fractions of it.

@@ -16,7 +16,7 @@ from mimetic.render import (
     rasterize,
     render,
 )
-from mimetic.view.sheet import contact_sheet, draw_lines, draw_points, overlay_segments, save_png
+from mimetic.view.sheet import contact_sheet, draw_lines, draw_points, overlay_segments, save_image, save_png
 
 __all__ = [
     "VIEWS",
@@ -33,5 +33,6 @@ __all__ = [
     "project",
     "rasterize",
     "render",
+    "save_image",
     "save_png",
 ]

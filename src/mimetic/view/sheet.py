@@ -175,15 +175,36 @@ def contact_sheet(
     return np.asarray(sheet)
 
 
-def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
-    """Write ``image`` (h, w, 3|4) or (h, w) uint8 to ``path`` as a PNG, atomically; returns the path."""
+IMAGE_FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".webp": "WEBP"}
+"""Image file suffixes ``save_image`` writes, and the format each names."""
+
+
+def save_image(image: np.ndarray, path: str | os.PathLike) -> Path:
+    """Write ``image`` (h, w, 3|4) or (h, w) uint8 to ``path`` atomically, in the format its suffix
+    names (``IMAGE_FORMATS``: PNG, JPEG at quality 95 without alpha, WebP); returns the path."""
     path = Path(path)
+    kind = IMAGE_FORMATS.get(path.suffix.lower())
+    if kind is None:
+        raise ValueError(f"{path.name}: write images as {', '.join(IMAGE_FORMATS)}")
     array = np.asarray(image)
     shape_ok = array.ndim == 2 or (array.ndim == 3 and array.shape[2] in (3, 4))
     if array.dtype != np.uint8 or not shape_ok:
         raise ValueError(
-            f"save_png needs an (h, w), (h, w, 3) or (h, w, 4) uint8 image; got {array.shape} {array.dtype}"
+            f"save_image needs an (h, w), (h, w, 3) or (h, w, 4) uint8 image; got {array.shape} {array.dtype}"
         )
+    picture = Image.fromarray(np.ascontiguousarray(array))
+    options = {}
+    if kind == "JPEG":
+        picture = picture.convert("RGB")
+        options["quality"] = 95
     with atomic_write(path, "wb") as handle:
-        Image.fromarray(np.ascontiguousarray(array)).save(handle, format="PNG")
+        picture.save(handle, format=kind, **options)
     return path
+
+
+def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
+    """Write ``image`` (h, w, 3|4) or (h, w) uint8 to ``path`` as a PNG, atomically; returns the path."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ValueError(f"{path.name}: save_png writes .png files; use save_image for other formats")
+    return save_image(image, path)
