@@ -468,14 +468,15 @@ def _detect(
         raise LandmarkError(
             f"no face found in renders of the mesh from {tried} directions (best FaceDetection score "
             f"{score:.2f} < {MIN_SCORE}). Check that the mesh is a head with a face (eyes, nose, mouth), "
-            "or give the landmarks in a file (read_landmarks)."
+            "or give the landmarks in a file (CLI: --landmarks lm.csv; API: read_landmarks)."
         )
     views = _views(mesh, rotation, depth, yaws_deg, size, renderer, progress)
     if not views:
         raise LandmarkError(
             f"FaceMesh found no face in the {len(yaws)} full-size renders (yaws {yaws.tolist()}) "
-            f"although the orientation search scored {score:.2f}. Try size=512 and yaws (0, -25, 25), "
-            "or give the landmarks in a file."
+            f"although the orientation search scored {score:.2f}. Give the landmarks in a file instead "
+            "(CLI: --landmarks lm.csv; API: read_landmarks), e.g. the 68 points dlib or face-alignment "
+            "find on a render of the head."
         )
     normals = vertex_normals(mesh.vertices, mesh.faces)  # (n, 3)
     casters = [_RayCaster(mesh.vertices, mesh.faces, normals, view.camera, view.size) for view in views]
@@ -487,7 +488,7 @@ def _detect(
     if not iods:
         raise LandmarkError(
             "the rays through the outer eye corners MediaPipe found miss the mesh in every view; "
-            "give the landmarks in a file (read_landmarks)."
+            "give the landmarks in a file (CLI: --landmarks lm.csv; API: read_landmarks)."
         )
     iod = float(np.median(iods))
     positions, confidence, backers = _vote(views, casters, indices, iod)
@@ -566,7 +567,8 @@ def auto_landmarks(
     if keep.sum() < MIN_LANDMARKS:
         raise LandmarkError(
             f"only {int(keep.sum())} landmarks could be put on the surface (need {MIN_LANDMARKS}); "
-            "the mesh may have holes or be turned away. Give the landmarks in a file (read_landmarks)."
+            "the mesh may have holes or be turned away. Give the landmarks in a file (CLI: --landmarks "
+            "lm.csv; API: read_landmarks)."
         )
     return Landmarks(
         tuple(n for n, k in zip(names, keep, strict=True) if k),
