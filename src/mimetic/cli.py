@@ -517,10 +517,7 @@ def rig_command(
       mimetic rig my_head.obj -o my_head.mrig
       mimetic rig scan.stl --units mm --landmarks dlib68.csv -o scan.mrig
     """
-    from mimetic.fit.autolandmarks import auto_landmarks as find_landmarks
-    from mimetic.fit.landmarks import read_landmarks
-    from mimetic.fit.pipeline import rig_head
-    from mimetic.mesh.io import load_mesh
+    from mimetic.fit.pipeline import rig_mesh
     from mimetic.rig.format import save_rig
 
     if landmarks is not None and auto_landmarks:
@@ -531,21 +528,14 @@ def rig_command(
     stem = out.with_suffix("")
     report = _output(report or stem.with_name(stem.name + ".fit.json"), (".json",), "--report")
     picture = _output(picture or stem.with_name(stem.name + ".fit.png"), IMAGE_OUTPUTS, "--picture")
-    mesh = load_mesh(mesh_file, units=None if units is None else units.value)
     with _step_progress() as progress:
-        if landmarks is not None:
-            found = read_landmarks(landmarks, mesh_units=mesh.units)
-        else:
-            progress("landmarks (MediaPipe)", 0, 1)
-            found = find_landmarks(mesh)
-            progress("landmarks (MediaPipe)", 1, 1)
-        result = rig_head(
-            mesh,
-            found,
+        result = rig_mesh(
+            mesh_file,
+            landmarks,
+            units=None if units is None else units.value,
             resolution=resolution,
             force=force,
             progress=progress,
-            metadata={"source": mesh_file.name},
         )
     from mimetic.view import save_image
     from mimetic.view.fitreport import fit_report_image
@@ -754,14 +744,12 @@ def animate(
 
 def _muscle_targets(rig, engine: str, progress) -> dict:
     """One morph target per muscle channel (the baked basis), for GLB and USD export."""
-    from mimetic.engines import make_engine
-    from mimetic.engines.bake import bake
-    from mimetic.export.gltf import morph_targets_from_basis
+    from mimetic.export.gltf import morph_targets
 
     progress(0, 1)
-    basis = bake(make_engine(rig, engine)).basis
+    targets = morph_targets(rig, engine)
     progress(1, 1)
-    return morph_targets_from_basis(basis, rig)
+    return targets
 
 
 @command("export")

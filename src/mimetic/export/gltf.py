@@ -118,6 +118,15 @@ def bone_channels(rig: Rig) -> tuple[str, ...]:
     return tuple(out)
 
 
+def morph_targets(rig: Rig, engine: str = "wire") -> dict[str, np.ndarray]:
+    """One morph target per muscle channel of ``rig``: the engine baked to a ``Basis``
+    (``mimetic.engines.bake``), then ``morph_targets_from_basis``. Displacements (n, 3) in rig units."""
+    from mimetic.engines import make_engine
+    from mimetic.engines.bake import bake
+
+    return morph_targets_from_basis(bake(make_engine(rig, engine)).basis, rig)
+
+
 def morph_targets_from_basis(basis: Basis, rig: Rig) -> dict[str, np.ndarray]:
     """Morph targets (rig units) that reproduce a baked rig through glTF morphing plus skinning.
 

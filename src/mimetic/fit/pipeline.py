@@ -13,9 +13,11 @@ transfer it to the welded vertices (``fit.transfer``) and move it back onto the 
 from __future__ import annotations
 
 import dataclasses
+import os
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -202,6 +204,54 @@ def rig_head(
     if progress is not None:
         progress("rig", 1, 1)
     return RigResult(rig, report, fit, flipped, weld.n_merged, int(reversed_faces.sum()))
+
+
+def rig_mesh(
+    mesh: Mesh | str | os.PathLike[str],
+    landmarks: Landmarks | str | os.PathLike[str] | None = None,
+    *,
+    units: str | None = None,
+    resolution: int = DEFAULT_RESOLUTION,
+    force: bool = False,
+    progress: Progress | None = None,
+) -> RigResult:
+    """Rig a head in one call (what ``mimetic rig`` does): load, find or read landmarks, ``rig_head``.
+
+    Parameters
+    ----------
+    mesh : Mesh or path
+        The head, or a mesh file (.obj .ply .stl .glb .gltf) read with ``load_mesh(path, units=units)``.
+    landmarks : Landmarks, path or None
+        Landmarks; a landmark file (JSON or CSV, see ``read_landmarks``); or None to find them with
+        MediaPipe on renders of the mesh (``auto_landmarks``, the ``[track]`` extra).
+    units : {"mm", "cm", "dm", "m", "in"}, optional
+        The file's units when it does not say (else guessed from its size, with a warning).
+    resolution, force, progress
+        As for ``rig_head``.
+
+    Returns
+    -------
+    RigResult
+        ``result.rig`` on the user's vertices; save it with ``mimetic.save_rig``.
+    """
+    from mimetic.fit.landmarks import read_landmarks
+    from mimetic.mesh.io import load_mesh
+
+    source = {}
+    if not isinstance(mesh, Mesh):
+        source = {"source": Path(mesh).name}
+        mesh = load_mesh(mesh, units=units)
+    if landmarks is None:
+        from mimetic.fit.autolandmarks import auto_landmarks
+
+        if progress is not None:
+            progress("landmarks (MediaPipe)", 0, 1)
+        landmarks = auto_landmarks(mesh)
+        if progress is not None:
+            progress("landmarks (MediaPipe)", 1, 1)
+    elif not isinstance(landmarks, Landmarks):
+        landmarks = read_landmarks(landmarks, mesh_units=mesh.units)
+    return rig_head(mesh, landmarks, resolution=resolution, force=force, progress=progress, metadata=source)
 
 
 def _turned(weld: Weld, mask: np.ndarray) -> Weld:
