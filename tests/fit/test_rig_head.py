@@ -17,6 +17,7 @@ from mimetic.errors import LandmarkError, MeshError, MimeticWarning
 from mimetic.fit.autolandmarks import MEDIAPIPE_LANDMARKS
 from mimetic.fit.landmarks import Landmarks
 from mimetic.fit.pipeline import MAX_VERTICES, RigResult, rig_head
+from mimetic.head.landmarks import IBUG68
 from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.geometry import vertex_normals
@@ -331,16 +332,15 @@ def test_mediapipe_face_masks_rig(file: str) -> None:
     assert jaw[MEDIAPIPE_LANDMARKS["menton"]] > 0.9 and jaw[MEDIAPIPE_LANDMARKS["nasion"]] < 0.05
 
 
-def test_fitted_reference_lands_on_the_corresponding_points(target: Head, rigged: RigResult) -> None:
+def _correspondence_error(target: Head, fit) -> tuple[np.ndarray, np.ndarray]:
     """Known correspondence: both heads sample one parametric surface, so reference vertex i belongs
-    where the target's surface has i's chart coordinate. The registration must bring the face there
-    (and closer than the conformed start, which only matches the landmarks)."""
+    where the target's surface has i's chart coordinate. Error (k,) of the fitted and of the start
+    (conformed) reference's face vertices there, % of the head height."""
     from scipy.interpolate import LinearNDInterpolator
 
     from mimetic.head.shape import skin_geometry
     from mimetic.head.topology import build_topology
 
-    fit = rigged.fit
     params = target.params
     reference_chart = skin_geometry(build_topology(fit.head.resolution), params).chart
     target_chart = skin_geometry(build_topology(target.resolution), params).chart
@@ -355,6 +355,13 @@ def test_fitted_reference_lands_on_the_corresponding_points(target: Head, rigged
     height = np.ptp(target.mesh.vertices[: target.n_skin, 1])
     error = 100 * np.linalg.norm(fitted - truth[ok], axis=1) / height
     before = 100 * np.linalg.norm(start - truth[ok], axis=1) / height
+    return error, before
+
+
+def test_fitted_reference_lands_on_the_corresponding_points(target: Head, rigged: RigResult) -> None:
+    """The registration must bring the face where it belongs (and closer than the conformed start,
+    which only matches the landmarks)."""
+    error, before = _correspondence_error(target, rigged.fit)
     assert error.mean() < 0.6 and np.percentile(error, 95) < 1.2  # % of the head height
     assert error.mean() < before.mean()
 
@@ -464,3 +471,135 @@ def test_ict_mouth_opens_without_tearing_at_the_corners_or_dragging_the_gums(
     first, last = ranges["Gums and tongue"]
     gums = mesh.faces[((mesh.faces >= first) & (mesh.faces <= last)).all(axis=1)]
     assert np.percentile(stretch(gums), 99) < 3.0
+
+
+# ------------------------------------------------------------------------- 68-point files (iBUG outline)
+
+
+def ibug_outline(head: Head, samples: int = 17, seed: int = 0) -> np.ndarray:
+    """An iBUG-like outline (samples, 3) on ``head``'s skin: its frontal silhouette from eye level on
+    the subject's right, round the chin, to eye level on the left, at equal arc length. (The head's
+    own jaw_* points lie on the same silhouette, at fixed angles from a lower centre.)"""
+    import trimesh
+
+    skin = trimesh.Trimesh(head.mesh.vertices, head.mesh.faces[head.mesh.parts["skin"]], process=False)
+    dense, _ = trimesh.sample.sample_surface(skin, 300_000, seed=seed)
+    eye_y = head.landmark_positions(["eye_outer_corner_L"])[0, 1]
+    chin_y = head.landmark_positions(["menton"])[0, 1]
+    front = dense[(dense[:, 2] > -1.0) & (dense[:, 1] <= eye_y) & (dense[:, 1] >= chin_y)]
+    rel = front[:, :2] - [0.0, eye_y]
+    angle, radius = np.arctan2(rel[:, 1], rel[:, 0]), np.linalg.norm(rel, axis=1)
+    silhouette = []
+    for a in np.linspace(-np.pi, 0.0, 361):  # outermost sample along each ray, right to left
+        band = np.abs(np.angle(np.exp(1j * (angle - a)))) < 0.005
+        silhouette.append(front[band][np.argmax(radius[band])])
+    silhouette = np.array(silhouette)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(silhouette[:, :2], axis=0), axis=1))])
+    return silhouette[np.searchsorted(arc, np.linspace(0.0, arc[-1], samples)).clip(0, len(silhouette) - 1)]
+
+
+def write_ibug68_csv(path, points68: np.ndarray) -> None:
+    """A 68-point file as dlib / OpenFace / face-alignment users have them: ibug68_01 … ibug68_68."""
+    rows = ["# units: cm", "name,x,y,z"]
+    rows += [f"ibug68_{k + 1:02d},{x!r},{y!r},{z!r}" for k, (x, y, z) in enumerate(points68.tolist())]
+    path.write_text("\n".join(rows) + "\n")
+
+
+@pytest.fixture(scope="module")
+def ict68(ict, tmp_path_factory) -> Landmarks:
+    """ICT's own 68 landmark vertices, through a CSV file."""
+    from mimetic.fit.landmarks import read_landmarks
+
+    mesh, _, meta = ict
+    path = tmp_path_factory.mktemp("ict68") / "ict68.csv"
+    write_ibug68_csv(path, mesh.vertices[meta["landmarks_68"]["vertex_indices"]])
+    return read_landmarks(path)
+
+
+def test_ict_full_68_point_file_rigs_without_force(ict, ict68: Landmarks, ict_rigged: RigResult) -> None:
+    """The outline points slide: the file rigs as tightly as ICT's 49 inner points, into the same rig
+    (before, it was refused: landmark RMS 18.6 % of the eye distance, limit 15 %)."""
+    mesh, _, _ = ict
+    assert len(ict68) == 66  # 68 less the inner mouth corners, which share the outer corners' names
+    result = rig_head(mesh, ict68)
+    report = result.report
+    assert report.accepted, report.reasons
+    assert report.mean_pct < 0.05 and report.p95_pct < 0.1  # measured 0.013 and 0.038
+    assert report.coverage > 0.95
+    assert report.landmark_rms_pct < 8.0  # measured 3.9 % (outline points: across the outline)
+    outline = [n for n in ict68.names if report.landmarks[n]["sliding"]]
+    assert len(outline) == 17 and max(report.landmarks[n]["error_pct_iod"] for n in outline) < 15.0
+    a = result.rig.skin_weights.toarray()[:9409]
+    b = ict_rigged.rig.skin_weights.toarray()[:9409]
+    assert 100 * np.abs(a - b).mean(axis=0).max() < 1.0  # % per bone; measured at most 0.42
+
+
+@pytest.mark.parametrize(("spread", "seed"), [(1.0, 0), (2.0, 1), (2.0, 2)])
+def test_ict_identity_68_point_files_rig(ict, spread: float, seed: int) -> None:
+    """ICT's identity modes, w ~ N(0, spread²), with their own 68 landmark vertices."""
+    mesh, _, meta = ict
+    modes = np.load(require_shared_data("ict-facekit") / "identities.npz")
+    w = spread * np.random.default_rng(seed).normal(size=20)
+    delta = sum(w[k] * modes[f"identity{k:03d}"].astype(np.float64) for k in range(20))
+    other = Mesh(mesh.vertices + delta, mesh.faces, units="cm")
+    names, rows = [], []
+    for k, vertex in enumerate(meta["landmarks_68"]["vertex_indices"]):
+        if k not in (60, 64):  # the inner mouth corners
+            names.append(IBUG68[k])
+            rows.append(vertex)
+    marks = Landmarks(tuple(names), other.vertices[rows], np.ones(len(rows)), "cm", "ict-identity 68")
+    report = rig_head(other, marks).report
+    assert report.accepted, report.reasons
+    assert report.mean_pct < 0.05 and report.p95_pct < 0.1  # measured 0.013-0.014 and 0.039-0.044
+    assert report.landmark_rms_pct < 8.0  # measured 3.0-4.1 %
+
+
+def test_wrong_landmarks_are_refused_and_named(ict, ict68: Landmarks) -> None:
+    """Mouth corners swapped and the nose tip clicked on the chin: the fit names those three, says
+    how to fix them, and leaves the pipeline's --force advice at the end."""
+    mesh, _, _ = ict
+    points = ict68.positions.copy()
+    left, right = ict68.names.index("mouth_corner_L"), ict68.names.index("mouth_corner_R")
+    points[[left, right]] = points[[right, left]]
+    points[ict68.names.index("nose_tip")] = points[ict68.names.index("menton")]
+    wrong = Landmarks(ict68.names, points, ict68.confidence, "cm", "wrong")
+    with pytest.raises(MeshError) as caught:
+        rig_head(mesh, wrong)
+    message = str(caught.value)
+    for named in ("mouth_corner_L = ibug68_55", "mouth_corner_R = ibug68_49", "nose_tip = ibug68_31"):
+        assert named in message
+    assert "nasion" not in message and "jaw_" not in message  # only the wrong ones are named
+    assert "check that the names and their order match the points" in message
+    assert message.endswith("(CLI: --force).") and ".." not in message
+
+
+def test_outline_point_moved_across_the_outline_is_refused_and_named(ict, ict68: Landmarks) -> None:
+    mesh, _, _ = ict
+    points = ict68.positions.copy()
+    k = ict68.names.index("jaw_L4")  # iBUG 14, on the left cheek: 4 cm out into the air
+    points[k] += [4.0, 0.0, 0.0]
+    with pytest.raises(MeshError, match=r"jaw_L4 = ibug68_14 \d+ % across the face outline"):
+        rig_head(mesh, Landmarks(ict68.names, points, ict68.confidence, "cm", "moved"))
+
+
+def test_generated_head_with_an_ibug_like_outline_keeps_its_correspondence(
+    target: Head, rigged: RigResult
+) -> None:
+    """An iBUG-like outline (the silhouette at equal arc length, not the head's own jaw_* points)
+    added to the head's landmarks: accepted, the outline fits across, and the face still lands
+    where it belongs (front-skin error within 0.02 % of the head height of the fit without it)."""
+    names = _names(target)
+    marks = Landmarks(
+        (*names, *IBUG68[:17]),
+        np.vstack([target.landmark_positions(names), ibug_outline(target)]),
+        np.ones(len(names) + 17),
+        "cm",
+        "ibug-like",
+    )
+    result = rig_head(target.mesh, marks)
+    assert result.report.accepted, result.report.reasons
+    outline = [result.report.landmarks[n]["error_pct_iod"] for n in IBUG68[:17]]
+    assert max(outline) < 10.0  # measured 5.9 %
+    error, _ = _correspondence_error(target, result.fit)
+    baseline, _ = _correspondence_error(target, rigged.fit)
+    assert error.mean() < baseline.mean() + 0.02  # % of the head height

@@ -172,7 +172,10 @@ def fit_reference(
     skin_faces = start.mesh.faces[start.mesh.parts["skin"]]
     size = float(np.ptp(start.mesh.vertices[: start.n_skin, 1]))
     lm_vertices = np.array([start.landmarks[n] for n in names])
-    on_skin = lm_vertices < start.n_skin
+    # outline points only say where the face's outline is, which the surface term fits anyway;
+    # bound to the reference's own outline vertices they would drag its jaw line to the file's
+    # convention (ICT's and OpenFace's lie 1-2.5 cm in front of the silhouette)
+    on_skin = (lm_vertices < start.n_skin) & ~conformation.sliding
     mapped = to_model.apply(points)
     registration = register(
         start.mesh.vertices[: start.n_skin],

@@ -9,12 +9,16 @@ dilute them):
 * ``coverage``: the share of the reference face (skin vertices looking forward) that found the
   target: a face-only scan covers the face, a cube does not look like one;
 * per landmark: the target landmark against the fitted reference's, in % of the inter-ocular
-  distance (outer eye corners) and in the user's units;
+  distance (outer eye corners) and in the user's units; for outline points (``sliding``, see
+  ``fit.conform``) the distance across the fitted reference's face outline, seen from the front,
+  after moving that outline by the median of those distances (the file's outline convention);
 * per region: the mean surface residual of each reference region, flagged above
   ``POOR_REGION_PCT``.
 
 The reject gate fails a fit whose landmarks cannot be explained by a head (landmark RMS after the
-similarity and conformation fit above ``MAX_LANDMARK_RMS_PCT`` of the IOD), whose face coverage is
+similarity and conformation fit above ``MAX_LANDMARK_RMS_PCT`` of the IOD, or any one landmark
+further than ``MAX_LANDMARK_PCT`` from where the conformed head has it; the message names the worst
+ones, with their iBUG numbers), whose face coverage is
 below ``MIN_COVERAGE``, whose mean residual is above ``MAX_MEAN_PCT``, or whose face had to move
 more than ``MAX_DEFORMATION_PCT`` from the conformed reference to fit (the surface is not face-
 shaped: a box or a sphere can be covered, but only by flattening the nose).
@@ -29,11 +33,15 @@ from pathlib import Path
 import numpy as np
 
 from mimetic.atomic import atomic_write
+from mimetic.fit.conform import OUTLINE, outline_feet
 from mimetic.fit.reference import ReferenceFit, projectable_vertices
+from mimetic.head.landmarks import IBUG68
 from mimetic.head.topology import build_topology
 
 POOR_REGION_PCT = 1.0
 MAX_LANDMARK_RMS_PCT = 15.0
+MAX_LANDMARK_PCT = 30.0  # any one landmark; in real 68-point files (ICT, MediaPipe, OpenFace) at most 18 %
+NAMED_LANDMARK_PCT = 20.0  # a refusal names every landmark further off than this (at most 8)
 MIN_COVERAGE = 0.45  # MediaPipe's canonical face mask covers 66 % of the reference face
 MAX_MEAN_PCT = 1.5
 MAX_DEFORMATION_PCT = 4.0  # heads (ICT, MediaPipe, generated) need at most 1.4 %; a box 8 %
@@ -57,7 +65,8 @@ class FitReport:
         the head diagonal: large when the surface is not shaped like a face (a box flattens it).
     landmark_rms_pct : float
         % of the inter-ocular distance.
-    landmarks : dict name -> {"error_pct_iod": float, "error_units": float}
+    landmarks : dict name -> {"error_pct_iod": float, "error_units": float, "sliding": bool}
+        The fitted reference's landmarks against the user's (outline points: across the outline).
     regions : dict name -> mean residual, % of the head diagonal
     poor_regions : list of str
     accepted : bool
@@ -132,11 +141,20 @@ def fit_report(fit: ReferenceFit, units: str) -> FitReport:
     iod = float(np.linalg.norm(np.subtract(*head.landmark_positions(corners)))) if len(corners) == 2 else 1.0
     fitted = head.landmark_positions(list(fit.landmark_names))
     errors = np.linalg.norm(fitted - fit.landmark_targets, axis=1)
+    sliding = fit.conformation.sliding
+    if sliding.any():
+        across = outline_feet(head.landmark_positions(list(OUTLINE)), fit.landmark_targets[sliding]).distance
+        errors[sliding] = np.abs(across - np.median(across))
     landmarks = {
-        name: {"error_pct_iod": float(100 * e / iod), "error_units": float(e / model_per_user)}
-        for name, e in zip(fit.landmark_names, errors, strict=True)
+        name: {
+            "error_pct_iod": float(100 * e / iod),
+            "error_units": float(e / model_per_user),
+            "sliding": bool(b),
+        }
+        for name, e, b in zip(fit.landmark_names, errors, sliding, strict=True)
     }
-    conform_rms_pct = float(100 * np.sqrt(np.mean(fit.conformation.residual**2)) / iod)
+    conform_pct = 100 * fit.conformation.residual / iod
+    conform_rms_pct = float(np.sqrt(np.mean(conform_pct**2)))
     regions = {}
     for name, ids in head.regions.items():
         ids = ids[ids < head.n_skin]
@@ -145,11 +163,9 @@ def fit_report(fit: ReferenceFit, units: str) -> FitReport:
             regions[name] = float(pct[ok].mean())
     poor = sorted(n for n, v in regions.items() if v > POOR_REGION_PCT)
     reasons = []
-    if conform_rms_pct > MAX_LANDMARK_RMS_PCT:
-        reasons.append(
-            f"the landmarks do not fit a head (RMS {conform_rms_pct:.1f} % of the eye distance after "
-            f"alignment, limit {MAX_LANDMARK_RMS_PCT} %): check their names and positions"
-        )
+    reason = landmark_reason(fit, conform_pct, conform_rms_pct, model_per_user, units)
+    if reason:
+        reasons.append(reason)
     if coverage < MIN_COVERAGE:
         reasons.append(
             f"only {100 * coverage:.0f} % of the reference face found the surface (at least "
@@ -180,4 +196,47 @@ def fit_report(fit: ReferenceFit, units: str) -> FitReport:
         reasons=reasons,
         params=fit.conformation.params.as_dict(),
         scale=float(model_per_user),
+    )
+
+
+def ibug_label(name: str) -> str:
+    """``name`` with its iBUG 68-point number when it has one: ``"menton = ibug68_09"``."""
+    return f"{name} = ibug68_{IBUG68.index(name) + 1:02d}" if name in IBUG68 else name
+
+
+def landmark_reason(
+    fit: ReferenceFit, conform_pct: np.ndarray, rms_pct: float, model_per_user: float, units: str
+) -> str:
+    """Why the landmarks fail the gate, naming the worst ones and the fix; "" when they pass.
+
+    ``conform_pct`` (k,) is each landmark's conformation residual in % of the eye distance. The text
+    is a clause without a final full stop, so callers can append their own advice.
+    """
+    far = conform_pct > MAX_LANDMARK_PCT
+    if rms_pct <= MAX_LANDMARK_RMS_PCT and not far.any():
+        return ""
+    order = np.argsort(-conform_pct)
+    named = int(np.sum(conform_pct > NAMED_LANDMARK_PCT))
+    shown = order[: min(named, 8) if named else 3]
+    sliding = fit.conformation.sliding
+    worst = ", ".join(
+        f"{ibug_label(fit.landmark_names[i])} {conform_pct[i]:.0f} %"
+        + (" across the face outline" if sliding[i] else "")
+        + f" ({fit.conformation.residual[i] / model_per_user:.3g} {units})"
+        for i in shown
+    )
+    if rms_pct > MAX_LANDMARK_RMS_PCT:
+        head = (
+            f"the landmarks do not fit a head (RMS {rms_pct:.1f} % of the eye distance after alignment, "
+            f"limit {MAX_LANDMARK_RMS_PCT:g} %); worst: {worst}"
+        )
+    else:
+        head = (
+            f"{int(far.sum())} landmark{'s are' if far.sum() > 1 else ' is'} far from where a head has "
+            f"{'them' if far.sum() > 1 else 'it'} (limit {MAX_LANDMARK_PCT:g} % of the eye distance after "
+            f"alignment): {worst}"
+        )
+    return (
+        head + "; check that the names and their order match the points (iBUG numbers count from 1, "
+        "_L is the subject's left), then move or remove the landmarks named"
     )
