@@ -185,3 +185,20 @@ def test_fit_conformation_outline_point_slides_along_but_not_across(ict68, name:
     # the pushed point is down-weighted, so it barely moves the others either
     moved = np.linalg.norm(pushed.to_model.apply(points) - base.to_model.apply(points), axis=1)
     assert moved.mean() < 0.05
+
+
+def test_fit_conformation_with_an_outline_is_invariant_to_a_similarity_of_the_input(ict68) -> None:
+    """The outline is measured in the reference frame, so turning, moving and scaling the file
+    (here to mm, looking down -X) changes the pose, not the fit."""
+    from scipy.spatial.transform import Rotation
+
+    names, points = ict68
+    turn = Rotation.from_euler("xyz", [20, -90, 35], degrees=True).as_matrix()
+    moved = 10.0 * points @ turn.T + np.array([100.0, -40.0, 600.0])
+    a, b = fit_conformation(names, points), fit_conformation(names, moved)
+    np.testing.assert_allclose(a.residual, b.residual, atol=1e-6)
+    np.testing.assert_allclose(a.outline_offset, b.outline_offset, atol=1e-6)
+    np.testing.assert_allclose(
+        list(a.params.as_dict().values()), list(b.params.as_dict().values()), atol=1e-6
+    )
+    np.testing.assert_allclose(b.to_model.apply(moved), a.to_model.apply(points), atol=1e-6)

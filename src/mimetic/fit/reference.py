@@ -132,7 +132,8 @@ def fit_reference(
     mesh : Mesh
         The user's head, any units and orientation (the landmarks fix both).
     landmark_names : list of str, length k ≥ 8
-        Project landmark names.
+        Project landmark names. Outline points (iBUG 1-17, ``fit.conform.sliding_landmarks``)
+        slide along the face outline in the conformation and take no part in the registration.
     landmark_points : (k, 3) float64
         Their positions on ``mesh``, in its units and frame.
     landmark_weights : (k,) float64, optional
