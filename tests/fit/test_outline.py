@@ -21,7 +21,7 @@ from mimetic.fit.conform import (
     outline_feet,
     sliding_landmarks,
 )
-from mimetic.fit.report import MAX_LANDMARK_PCT, MAX_LANDMARK_RMS_PCT
+from mimetic.fit.report import MAX_LANDMARK_PCT, MAX_LANDMARK_RMS_PCT, NAMED_LANDMARK_PCT
 from mimetic.head.landmarks import IBUG68
 from mimetic.testing import load_ict, require_shared_data
 
@@ -122,11 +122,13 @@ def test_fit_conformation_ict68_fits_like_its_49_inner_points(ict68) -> None:
     np.testing.assert_array_equal(points, before)
     assert full.residual.shape == (66,) and full.sliding.sum() == 17 and full.weights.shape == (66,)
     pct = pct_of_eye_distance(full)
-    assert np.sqrt(np.mean(pct**2)) < 7.0  # measured 5.9 % (18.6 % before outline points slid)
-    assert pct.max() < 15.0  # measured 13.5 % (nasion)
+    assert np.sqrt(np.mean(pct**2)) < 0.5 * MAX_LANDMARK_RMS_PCT  # measured 5.9 % (18.6 % before they slid)
+    assert pct.max() < NAMED_LANDMARK_PCT  # measured 13.5 % (nasion)
     assert np.all(pct[full.sliding] < 10.0)  # measured at most 8.1 %
     # the outline lies inside the reference's silhouette: ICT's points sit on the cheek
-    assert -0.20 < full.outline_offset / eye_distance(landmark_model(), landmark_model().base) < -0.10
+    assert (
+        -0.25 < full.outline_offset / eye_distance(landmark_model(), landmark_model().base) < -0.05
+    )  # -0.15
     moved = np.linalg.norm(full.to_model.apply(points) - alone.to_model.apply(points), axis=1)
     assert moved.mean() < 0.06  # cm in the reference frame; measured 0.03
     a = np.array(list(full.params.as_dict().values()))
