@@ -10,11 +10,12 @@ import pytest
 import scipy.sparse as sp
 
 from mimetic.engines import ENGINES, make_engine
-from mimetic.engines.attach import Attachments, find_attachments, ride
+from mimetic.engines.attach import ride
 from mimetic.engines.skinning import about, rotation_z
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh
 from mimetic.rig.activations import pose
+from mimetic.rig.anatomy import Accessories, find_accessories
 from mimetic.rig.model import Rig
 from mimetic.testing import small_rig
 
@@ -60,7 +61,7 @@ def with_pieces(rig: Rig, pieces: list[tuple[np.ndarray, np.ndarray, str]]) -> R
     colors = None if mesh.colors is None else np.vstack([mesh.colors, np.full((added, 3), 0.5)])
     parts = {k: np.array(v) for k, v in parts.items()}
     new = Mesh(np.vstack(vertices), np.vstack(faces), parts, colors, mesh.units)
-    return dataclasses.replace(rig, mesh=new, skin_weights=weights)
+    return dataclasses.replace(rig, mesh=new, skin_weights=weights, anatomy=None)
 
 
 @cache
@@ -89,12 +90,12 @@ def lashed_rig() -> tuple[Rig, np.ndarray, np.ndarray]:
 def test_generated_heads_have_no_accessories():
     for seed in (None, 3):
         rig = small_rig(seed)
-        assert len(find_attachments(rig.mesh, rig.scale, rig.skin_weights)) == 0
+        assert len(find_accessories(rig.mesh, rig.scale, rig.skin_weights)) == 0
 
 
 def test_only_small_skin_pieces_near_the_skin_are_attached():
     rig, lash, _ = lashed_rig()
-    found = find_attachments(rig.mesh, rig.scale, rig.skin_weights)
+    found = find_accessories(rig.mesh, rig.scale, rig.skin_weights)
     np.testing.assert_array_equal(np.sort(found.vertices), lash)  # not the floating or eye_L piece
     np.testing.assert_allclose(found.weights.sum(axis=1), 1.0)
     # the rivets carry the lid's weight, not the head weight the pieces were given
@@ -130,7 +131,7 @@ def test_a_lash_closes_with_its_lid_in_one_piece(name):
 
 def test_ride_adds_the_rivet_shift_and_turns_the_offset_by_the_blended_bones():
     rest = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0.2, 0.2, 0.5]])
-    attachments = Attachments(
+    attachments = Accessories(
         vertices=np.array([3]),
         triangles=np.array([[0, 1, 2]]),
         bary=np.array([[0.6, 0.2, 0.2]]),

@@ -67,7 +67,7 @@ def test_an_unwelded_cheek_patch_moves_as_one_surface(head, clean, engine_name):
         values = expression_pose(rig, name)
         posed = engine.deform(values)
         gap = max(np.linalg.norm(posed[g] - posed[g[0]], axis=1).max() for g in groups)
-        assert gap == 0.0, f"{name}: copies of one vertex part by {gap:.3g} cm"
+        assert gap < 1e-12 * rig.scale, f"{name}: copies of one vertex part by {gap:.3g} cm"
         # and the patch deforms as the clean head's cheek does there
         np.testing.assert_allclose(
             posed[: head.mesh.n_vertices], reference.deform(values), atol=1e-3 * rig.scale
@@ -88,7 +88,7 @@ def test_a_triangle_soup_rigs_and_keeps_every_vertex(head):
     welded = find_weld(soup)
     # each welded vertex's copies all sit at one place: the soup still closes after the pose
     spread = np.linalg.norm(posed - posed[welded.first][welded.index], axis=1)
-    assert np.isfinite(posed).all() and spread.max() == 0.0
+    assert np.isfinite(posed).all() and spread.max() < 1e-12 * rig.scale  # (float rounding only)
     assert np.linalg.norm(posed - soup.vertices, axis=1).max() > 0.005 * rig.scale  # and it does smile
 
 

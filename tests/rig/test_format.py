@@ -114,7 +114,7 @@ def test_save_rig_writes_manifest_and_pickle_free_arrays(rig, good):
         doc = json.loads(archive.read("rig.json"))
         npz = np.load(io.BytesIO(archive.read("arrays.npz")), allow_pickle=False)
     assert manifest == {"format": "mimetic-rig", "version": FORMAT_VERSION, "mimetic": __version__}
-    assert FORMAT_VERSION == 1
+    assert FORMAT_VERSION == 2
     assert [m["name"] for m in doc["muscles"]] == list(rig.muscle_names)
     with npz:
         arrays = {key: npz[key] for key in npz.files}
@@ -260,12 +260,13 @@ def test_load_rig_wrong_format_name_raises_format_error(good, tmp_path):
 
 
 def test_load_rig_newer_version_raises_format_error_with_upgrade_hint(good, tmp_path):
-    path = rewrite(good, tmp_path / "new.mrig", manifest=lambda m: m.update(version=2, mimetic="9.0.0"))
+    newer = FORMAT_VERSION + 1
+    path = rewrite(good, tmp_path / "new.mrig", manifest=lambda m: m.update(version=newer, mimetic="9.0.0"))
     with pytest.raises(RigFormatError) as info:
         load_rig(path)
     message = str(info.value)
-    assert "written by mimetic format version 2" in message
-    assert "versions ≤ 1" in message and "pip install -U mimetic" in message
+    assert f"written by mimetic format version {newer}" in message
+    assert f"versions ≤ {FORMAT_VERSION}" in message and "pip install -U mimetic" in message
 
 
 def test_load_rig_bad_version_type_raises_format_error(good, tmp_path):
@@ -401,3 +402,47 @@ def test_load_rig_inconsistent_contents_raise_rig_error(good, tmp_path, edit, ex
     assert not isinstance(info.value, RigFormatError)
     assert str(info.value).startswith("x.mrig: ")
     assert expected in str(info.value)
+
+
+# --------------------------------------------------------------------------- the anatomy (format 2)
+
+
+def test_load_rig_of_format_1_derives_the_anatomy(good, tmp_path, rig):
+    """A file written before the anatomy was stored still loads, with the anatomy derived by the rules."""
+
+    def to_version_1(data):
+        data["version"] = 1
+
+    path = rewrite(good, tmp_path / "v1.mrig", manifest=to_version_1, doc=lambda d: d.pop("anatomy"))
+    loaded = load_rig(path)
+    assert rig_differences(loaded, rig) == []
+
+
+def test_save_rig_stores_the_anatomy_and_loads_it_back(tmp_path):
+    from mimetic.testing import small_rig
+
+    rig = small_rig()
+    assert len(rig.anatomy.creases) > 10 and len(rig.anatomy.lip_contact) > 5
+    path = save_rig(rig, tmp_path / "a.mrig")
+    doc = json.loads(read_members(path)["rig.json"])
+    assert {"creases", "skull", "lip_contact", "accessories", "thickness_rel"} <= set(doc["anatomy"])
+    assert rig_differences(load_rig(path), rig) == []
+
+
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda d: d["anatomy"].pop("skull"), "anatomy.skull is missing"),
+        (lambda d: d["anatomy"]["creases"][0].update(gains={"ghost": 1.0}), "channels the rig lacks"),
+        (
+            lambda d: d["anatomy"]["creases"][0].update(gains={"frontalis_inner_L": "deep"}),
+            "should be a number",
+        ),
+    ],
+)
+def test_load_rig_bad_anatomy_names_the_field(tmp_path, edit, expected):
+    from mimetic.testing import small_rig
+
+    good = save_rig(small_rig(), tmp_path / "a.mrig")
+    with pytest.raises((RigFormatError, RigError), match=expected):
+        load_rig(rewrite(good, tmp_path / "x.mrig", doc=edit))

@@ -32,42 +32,18 @@ class Engine(Protocol):
 def make_engine(rig: Rig, name: str = "wire", **options) -> Engine:
     """Prepare the named engine for a rig (options: ``skull``, ``creases``).
 
-    An engine runs on the rig with its unwelded seams merged (``mimetic.rig.weld.weld_rig``: UV
-    seams, an unwelded patch), so what it computes from the topology sees one surface, and
-    ``deform`` gives every copy of a merged vertex the same position: (n, 3) in the rig's own
-    vertex order and count either way.
+    Engines work from vertex positions and the rig's precomputed anatomy (``Rig.anatomy``), which
+    is derived across unwelded seams, so coincident copies of a vertex (a UV seam, an unwelded
+    patch) move together in every pose.
     """
-    from mimetic.rig.weld import weld_rig
-
-    welded, weld = weld_rig(rig)
     if name == "wire":
         from mimetic.engines.wire import WireEngine
 
-        engine: Engine = WireEngine(welded, **options)
-    elif name == "vector":
+        return WireEngine(rig, **options)
+    if name == "vector":
         from mimetic.engines.vector import VectorEngine
 
-        engine = VectorEngine(welded, **options)
-    else:
-        from mimetic.errors import MimeticError
+        return VectorEngine(rig, **options)
+    from mimetic.errors import MimeticError
 
-        raise MimeticError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")
-    return engine if weld.n_merged == 0 else WeldedEngine(engine, rig, weld.index)
-
-
-class WeldedEngine:
-    """An engine prepared on a rig's welded copy, answering for the rig itself.
-
-    ``deform(values)`` is the inner engine's (k, 3) result spread to the rig's n vertices through
-    ``index`` (n,), the welded vertex of each rig vertex.
-    """
-
-    def __init__(self, inner: Engine, rig: Rig, index: np.ndarray) -> None:
-        self.inner = inner
-        self.name = inner.name
-        self.rig = rig
-        self.channels = inner.channels
-        self.index = index
-
-    def deform(self, values: np.ndarray) -> np.ndarray:
-        return self.inner.deform(values)[self.index]
+    raise MimeticError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")

@@ -1,131 +1,29 @@
-"""Accessories: small separate pieces of a mesh that ride the skin (eyelashes, brows, tear lines).
+"""Accessories riding the skin, at run time: each accessory vertex placed by its rivet.
 
-A scanned or modelled head often carries eyelashes, eyebrow cards or thin shells over the eyes as
-separate connected components. Transferred rigs give them the weights of whatever reference
-surface lies nearest to each vertex, so a lash's root and tip can follow different lid columns
-and stretch into spikes when the eye closes. Here each accessory vertex is instead riveted to the
-skin under its nearest root, as a rivet or proximity-wrap deformer would: the rivet moves with the
-deformed skin, and the vertex's rest offset from it turns by the bones as weighted at the rivet.
-A lash therefore stays on the lid margin and swings with the lid as one piece; the skin triangles'
-own orientation is not used, as it is noisy at a lid margin.
-
-An accessory is a connected component, other than the largest one, whose faces all belong to the
-``skin`` part (eyeballs, teeth, tongue and the other named parts keep their bones), with at most
-``ACCESSORY_MAX_FRACTION`` of the vertices, and that comes within ``ACCESSORY_GAP_REL`` of the
-head scale of the main skin. Its roots are its vertices within ``ROOT_BAND_REL`` of its closest
-approach; every vertex follows the skin point under its nearest root.
+Which pieces are accessories, and where their rivets sit, is the rig's anatomy
+(``mimetic.rig.anatomy.accessories``); ``ride`` moves them with the deformed skin, as a rivet or
+proximity-wrap deformer would: the rivet moves with the skin, and the vertex's rest offset from it
+turns by the bones as weighted at the rivet. A lash therefore stays on the lid margin and swings
+with the lid as one piece; the skin triangles' own orientation is not used, as it is noisy at a
+lid margin.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
-import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
-from mimetic.mesh.closest import closest_points
-from mimetic.mesh.geometry import connected_components
-from mimetic.mesh.model import Mesh
-
-ACCESSORY_MAX_FRACTION = 0.02  # of the mesh's vertices (an ICT eyelash strip: 0.4 %)
-ACCESSORY_GAP_REL = 0.01  # farthest closest approach to the skin, × the head scale (~2 mm)
-ROOT_BAND_REL = 0.003  # roots lie within this of the closest approach, × the head scale (~0.7 mm)
-
-
-@dataclass(frozen=True, eq=False)
-class Attachments:
-    """Accessory vertices and the skin points they ride.
-
-    Attributes
-    ----------
-    vertices : (a,) int64
-        The accessory vertices.
-    triangles : (a, 3) int64
-        The skin triangle (its three vertex indices) carrying each one's rivet.
-    bary : (a, 3) float64
-        The rivet: barycentric coordinates of the root's closest point on that triangle.
-    offsets : (a, 3) float64
-        Each rest vertex minus its rest rivet, in mesh units.
-    weights : (a, bones) float64
-        The skin weights at each rivet (interpolated from the triangle's corners), summing to 1.
-    """
-
-    vertices: np.ndarray
-    triangles: np.ndarray
-    bary: np.ndarray
-    offsets: np.ndarray
-    weights: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.vertices)
-
-
-def find_attachments(mesh: Mesh, scale: float, weights: sp.spmatrix) -> Attachments:
-    """The accessories of ``mesh`` (see the module docstring) riveted to its main skin, at rest.
-
-    Parameters
-    ----------
-    mesh : Mesh
-        The rig's mesh; ``parts["skin"]`` names its deformable faces.
-    scale : float
-        The head scale (rig units) the thresholds are relative to.
-    weights : (n, bones) sparse
-        The rig's skin weights.
-    """
-    bones = weights.shape[1]
-    empty = np.zeros((0, 3))
-    none = Attachments(np.zeros(0, np.int64), np.zeros((0, 3), np.int64), empty, empty, np.zeros((0, bones)))
-    skin = mesh.parts.get("skin")
-    if skin is None or mesh.n_faces == 0:
-        return none
-    n, faces = mesh.n_vertices, mesh.faces
-    _, label = connected_components(faces, n)
-    sizes = np.bincount(label)
-    main = int(np.argmax(sizes))
-    in_skin = np.zeros(mesh.n_faces, dtype=bool)
-    in_skin[skin] = True
-    face_label = label[faces[:, 0]]
-    outside_skin = np.unique(face_label[~in_skin])  # components with a face of another part
-    candidates = [
-        c
-        for c in np.unique(face_label[in_skin])
-        if c != main and c not in outside_skin and sizes[c] <= ACCESSORY_MAX_FRACTION * n
-    ]
-    main_faces = faces[(face_label == main) & in_skin]
-    if not candidates or len(main_faces) == 0:
-        return none
-    v = mesh.vertices
-    pieces = []
-    for c in candidates:
-        ids = np.flatnonzero(label == c)
-        near = closest_points(v, main_faces, v[ids])
-        gap = near.distance.min()
-        if gap > ACCESSORY_GAP_REL * scale:
-            continue  # floats free of the skin: not attached
-        roots = np.flatnonzero(near.distance <= gap + ROOT_BAND_REL * scale)
-        _, nearest = cKDTree(v[ids[roots]]).query(v[ids])
-        root = roots[nearest]  # (k,) the root each vertex follows
-        pieces.append((ids, near.faces[root], near.bary[root]))
-    if not pieces:
-        return none
-    ids, hit_faces, bary = (np.concatenate(x) for x in zip(*pieces, strict=True))
-    triangles = main_faces[hit_faces]  # (a, 3)
-    rivets = np.einsum("ak,akd->ad", bary, v[triangles])
-    dense = weights.tocsr()
-    at_rivets = sum(bary[:, [k]] * dense[triangles[:, k]].toarray() for k in range(3))  # (a, bones)
-    at_rivets /= at_rivets.sum(axis=1, keepdims=True)
-    return Attachments(ids.astype(np.int64), triangles.astype(np.int64), bary, v[ids] - rivets, at_rivets)
+from mimetic.rig.anatomy import Accessories
 
 
 def ride(
-    attachments: Attachments, rest: np.ndarray, deformed: np.ndarray, transforms: np.ndarray
+    accessories: Accessories, rest: np.ndarray, deformed: np.ndarray, transforms: np.ndarray
 ) -> np.ndarray:
     """``deformed`` with every accessory vertex placed by its rivet.
 
     Parameters
     ----------
-    attachments : Attachments
+    accessories : Accessories
+        The rig's ``anatomy.accessories``.
     rest, deformed : (n, 3) float64
         The rest mesh and the deformed one (skin done), mesh units.
     transforms : (bones, 4, 4) float64
@@ -138,11 +36,11 @@ def ride(
     (like ``linear_blend_skinning``) so that the rest pose gives back the rest exactly.
     """
     out = deformed.copy()
-    if len(attachments) == 0:
+    if len(accessories) == 0:
         return out
-    tri = attachments.triangles
-    shift = np.einsum("ak,akd->ad", attachments.bary, deformed[tri] - rest[tri])  # of the rivets
-    turn = np.einsum("ab,bij->aij", attachments.weights, transforms[:, :3, :3] - np.eye(3))  # (a, 3, 3)
-    ids = attachments.vertices
-    out[ids] = rest[ids] + shift + np.einsum("aij,aj->ai", turn, attachments.offsets)
+    tri = accessories.triangles
+    shift = np.einsum("ak,akd->ad", accessories.bary, deformed[tri] - rest[tri])  # of the rivets
+    turn = np.einsum("ab,bij->aij", accessories.weights, transforms[:, :3, :3] - np.eye(3))  # (a, 3, 3)
+    ids = accessories.vertices
+    out[ids] = rest[ids] + shift + np.einsum("aij,aj->ai", turn, accessories.offsets)
     return out

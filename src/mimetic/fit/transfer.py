@@ -24,12 +24,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from mimetic.engines.attach import find_attachments
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
 from mimetic.mesh.geometry import connected_components, edges_unique, neighbour_mean, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
+from mimetic.rig.anatomy import find_accessories
 from mimetic.rig.model import Bone, Rig, Wire
 
 MAX_INFLUENCES = 4
@@ -304,7 +304,7 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
     # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
     scale = reference.scale * to_rig.scale
-    riding = find_attachments(user_rig_mesh, scale, sp.csr_matrix(weights))
+    riding = find_accessories(user_rig_mesh, scale, sp.csr_matrix(weights))
     weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
     weights = sp.csr_matrix(weights)
 

@@ -8,7 +8,12 @@ A ``.mrig`` file is a zip archive (ZIP_DEFLATED) of three members:
 - ``arrays.npz``: every array, as ``.npy`` members (no pickles): mesh vertices (n, 3) float64,
   faces (m, 3) int64, parts (k,) int64, colors (n, 3) float32, regions and wire vertex sets
   (k,) int64, wire weights (p,) float64, skin weights as CSR ``data`` (nnz,) float64, ``indices``
-  (nnz,) int64 and ``indptr`` (n + 1,) int64.
+  (nnz,) int64 and ``indptr`` (n + 1,) int64, and the anatomy's arrays (crease vertices and
+  offsets, skull vertices and surface, lip contact pairs, accessory rivets, tissue thickness).
+
+Versions: 2 adds the rig's anatomy (``Rig.anatomy``: creases, skull, lip contact, accessories,
+tissue thickness). Version-1 files still load: their anatomy is derived from the rest of the rig
+by the current rules (``mimetic.rig.anatomy.derive_anatomy``), with a log line saying so.
 
 Floats are stored bit-exactly (arrays as raw float64; JSON numbers with Python's round-trip
 ``repr``), and every name and order is kept, so ``load_rig(save_rig(rig, p)) == rig``. Files are
@@ -38,14 +43,15 @@ from mimetic import __version__
 from mimetic.atomic import atomic_write
 from mimetic.errors import RigError, RigFormatError
 from mimetic.mesh.model import Mesh, SurfacePoint
+from mimetic.rig.anatomy import Accessories, Anatomy, Crease, Skull
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire, thaw_json
 from mimetic.rig.validate import validate_rig
 
 log = logging.getLogger(__name__)
 
 FORMAT_NAME = "mimetic-rig"
-FORMAT_VERSION = 1
-"""The version ``save_rig`` writes and the newest ``load_rig`` reads."""
+FORMAT_VERSION = 2
+"""The version ``save_rig`` writes and the newest ``load_rig`` reads (1 and 2)."""
 
 MANIFEST, RIG_JSON, ARRAYS = "manifest.json", "rig.json", "arrays.npz"
 _EPOCH = (1980, 1, 1, 0, 0, 0)  # fixed zip timestamps → reproducible bytes
@@ -163,12 +169,39 @@ def _encode(rig: Rig) -> dict[str, bytes]:
             "indptr": put("skin_weights.indptr", weights.indptr.astype(np.int64)),
         },
         "metadata": thaw_json(rig.metadata),
+        "anatomy": _anatomy_json(rig.anatomy, put),
     }
     manifest = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "mimetic": __version__}
     return {
         MANIFEST: json.dumps(manifest, indent=1).encode(),
         RIG_JSON: json.dumps(doc, indent=1, ensure_ascii=False, allow_nan=False).encode(),
         ARRAYS: _npz_bytes(arrays),
+    }
+
+
+def _anatomy_json(anatomy: Anatomy, put) -> dict[str, Any]:
+    """rig.json's ``anatomy`` object; ``put(key, array)`` stores an array and returns its key."""
+    acc, skull = anatomy.accessories, anatomy.skull
+    return {
+        "creases": [
+            {
+                "name": c.name,
+                "gains": dict(c.gains),
+                "vertices": put(f"anatomy.creases.{i}.vertices", c.vertices),
+                "offsets_rel": put(f"anatomy.creases.{i}.offsets_rel", c.offsets_rel),
+            }
+            for i, c in enumerate(anatomy.creases)
+        ],
+        "skull": {
+            "vertices": put("anatomy.skull.vertices", skull.vertices),
+            "surface": put("anatomy.skull.surface", skull.surface),
+        },
+        "lip_contact": put("anatomy.lip_contact", anatomy.lip_contact),
+        "accessories": {
+            name: put(f"anatomy.accessories.{name}", getattr(acc, name))
+            for name in ("vertices", "triangles", "bary", "offsets", "weights")
+        },
+        "thickness_rel": put("anatomy.thickness_rel", anatomy.thickness_rel),
     }
 
 
@@ -198,19 +231,21 @@ def load_rig(path: str | os.PathLike[str]) -> Rig:
         The file is readable but its contents are inconsistent (see ``validate_rig``).
     """
     path = Path(path)
-    members = _read_members(path)
+    members, version = _read_members(path)
     try:
         doc = _parse_json(members[RIG_JSON], RIG_JSON, path)
         arrays = _load_npz(members[ARRAYS], path)
-        return _decode(doc, arrays)
+        if version < 2:
+            log.info("%s: a format-1 rig; its anatomy is derived by the current rules", path.name)
+        return _decode(doc, arrays, version)
     except RigFormatError as error:
         raise RigFormatError(f"{path.name}: {error}") from None
     except RigError as error:
         raise RigError(f"{path.name}: {error}") from None
 
 
-def _read_members(path: Path) -> dict[str, bytes]:
-    """The archive's manifest-checked members ``rig.json`` and ``arrays.npz``."""
+def _read_members(path: Path) -> tuple[dict[str, bytes], int]:
+    """The archive's manifest-checked members ``rig.json`` and ``arrays.npz``, and its format version."""
     if not path.exists():
         raise RigFormatError(f"{path}: no such file; check the path (rig files end in .mrig)")
     if path.is_dir():
@@ -237,16 +272,16 @@ def _read_members(path: Path) -> dict[str, bytes]:
                     f"(it holds {sorted(names)[:5]}); {_RESAVE}"
                 )
             manifest = _parse_json(archive.read(MANIFEST), MANIFEST, path)
-            _check_manifest(manifest, path)
+            version = _check_manifest(manifest, path)
             missing = [name for name in (RIG_JSON, ARRAYS) if name not in names]
             if missing:
                 raise RigFormatError(f"{path.name} is incomplete: {', '.join(missing)} is missing; {_RESAVE}")
-            return {name: archive.read(name) for name in (RIG_JSON, ARRAYS)}
+            return {name: archive.read(name) for name in (RIG_JSON, ARRAYS)}, version
     except (zipfile.BadZipFile, zlib.error, EOFError, OSError) as error:
         raise RigFormatError(truncated.format(error)) from None
 
 
-def _check_manifest(manifest: Any, path: Path) -> None:
+def _check_manifest(manifest: Any, path: Path) -> int:
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
         found = manifest.get("format") if isinstance(manifest, dict) else manifest
         raise RigFormatError(
@@ -264,6 +299,7 @@ def _check_manifest(manifest: Any, path: Path) -> None:
         )
     if version < 1:
         raise RigFormatError(f"{path.name}: {MANIFEST}: version={version} is not a valid format version")
+    return version
 
 
 class _DuplicateKey(Exception):
@@ -422,8 +458,9 @@ class _Arrays:
         return array
 
 
-def _decode(doc: Any, arrays: Mapping[str, np.ndarray]) -> Rig:
-    """Build a ``Rig`` from parsed rig.json and the loaded arrays (types checked before values)."""
+def _decode(doc: Any, arrays: Mapping[str, np.ndarray], version: int = FORMAT_VERSION) -> Rig:
+    """Build a ``Rig`` from parsed rig.json and the loaded arrays (types checked before values); a
+    version-1 document has no anatomy, which the ``Rig`` then derives."""
     if not isinstance(doc, dict):
         raise RigFormatError(f"rig.json should hold an object; got a {_json_type(doc)}")
     A = _Arrays(arrays)
@@ -547,4 +584,47 @@ def _decode(doc: Any, arrays: Mapping[str, np.ndarray]) -> Rig:
         skin_weights=skin_weights,
         channels=tuple(channels),
         metadata=_get(doc, "metadata", "", "an object"),
+        anatomy=None
+        if version < 2
+        else _decode_anatomy(_get(doc, "anatomy", "", "an object"), A, len(bones)),
+    )
+
+
+def _decode_anatomy(doc: dict, A: _Arrays, n_bones: int) -> Anatomy:
+    """``Anatomy`` from rig.json's ``anatomy`` object (array shapes and dtypes checked)."""
+    creases = []
+    for i, c in enumerate(_get(doc, "creases", "anatomy", "a list")):
+        where = f"anatomy.creases[{i}]"
+        if not isinstance(c, dict):
+            raise RigFormatError(f"rig.json: {where} should be an object; got a {_json_type(c)}")
+        vertices = A.get(c, "vertices", where, np.int64, (None,))
+        gains = _get(c, "gains", where, "an object")
+        for channel, gain in gains.items():
+            if isinstance(gain, bool) or not isinstance(gain, (int, float)):
+                raise RigFormatError(f"rig.json: {where}.gains[{channel!r}] should be a number; got {gain!r}")
+        creases.append(
+            Crease(
+                name=_get(c, "name", where, "a string"),
+                gains=gains,
+                vertices=vertices,
+                offsets_rel=A.get(c, "offsets_rel", where, np.float64, (len(vertices), 3)),
+            )
+        )
+    skull_doc = _get(doc, "skull", "anatomy", "an object")
+    skull_ids = A.get(skull_doc, "vertices", "anatomy.skull", np.int64, (None,))
+    acc_doc = _get(doc, "accessories", "anatomy", "an object")
+    acc_ids = A.get(acc_doc, "vertices", "anatomy.accessories", np.int64, (None,))
+    a = len(acc_ids)
+    return Anatomy(
+        creases=tuple(creases),
+        skull=Skull(skull_ids, A.get(skull_doc, "surface", "anatomy.skull", np.float64, (len(skull_ids), 3))),
+        lip_contact=A.get(doc, "lip_contact", "anatomy", np.int64, (None, 2)),
+        accessories=Accessories(
+            acc_ids,
+            A.get(acc_doc, "triangles", "anatomy.accessories", np.int64, (a, 3)),
+            A.get(acc_doc, "bary", "anatomy.accessories", np.float64, (a, 3)),
+            A.get(acc_doc, "offsets", "anatomy.accessories", np.float64, (a, 3)),
+            A.get(acc_doc, "weights", "anatomy.accessories", np.float64, (a, n_bones)),
+        ),
+        thickness_rel=A.get(doc, "thickness_rel", "anatomy", np.float64, (None,)),
     )

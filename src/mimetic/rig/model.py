@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from mimetic.errors import RigError
 from mimetic.mesh.model import Mesh, SurfacePoint
+from mimetic.rig.anatomy import Anatomy, derive_anatomy
 
 ChannelUnit = Literal["activation", "rad", "rel"]
 MuscleKind = Literal["linear", "sphincter", "sheet"]
@@ -512,6 +513,11 @@ class Rig:
         column j is ``bones[j]``. Stored canonically (sorted indices, no explicit zeros).
     metadata : Mapping[str, JSON-safe]
         Free-form provenance (source mesh, recipe version, fit residuals); deep read-only.
+    anatomy : Anatomy
+        Creases, the forehead skull, lip contact pairs, accessories riding the skin and the
+        soft-tissue thickness (``mimetic.rig.anatomy``), which the engines read. Derived from the
+        fields above by ``derive_anatomy`` when not given (pass ``anatomy=None`` to
+        ``dataclasses.replace`` after changing the mesh, regions or skin weights).
     """
 
     mesh: Mesh
@@ -525,6 +531,7 @@ class Rig:
     skin_weights: sp.csr_matrix
     channels: tuple[Channel, ...]
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    anatomy: Anatomy | None = None
 
     def __post_init__(self) -> None:
         from mimetic.rig.validate import validate_rig
@@ -558,6 +565,14 @@ class Rig:
         if not isinstance(self.metadata, Mapping):
             raise RigError(f"metadata must be a mapping; got {type(self.metadata).__name__}")
         object.__setattr__(self, "metadata", freeze_json(self.metadata))
+        if self.anatomy is None:
+            anatomy = derive_anatomy(
+                self.mesh, self.landmarks, self.regions, self.skin_weights, self.scale, self.channel_names
+            )
+            object.__setattr__(self, "anatomy", anatomy)
+        elif not isinstance(self.anatomy, Anatomy):
+            kind = type(self.anatomy).__name__
+            raise RigError(f"anatomy must be a mimetic.rig.anatomy.Anatomy; got {kind}")
         validate_rig(self)
 
     def __repr__(self) -> str:
@@ -760,7 +775,26 @@ def rig_differences(a: Rig, b: Rig, limit: int = 10) -> list[str]:
             out.append("skin_weights: different sparsity pattern")
     if json.dumps(thaw_json(a.metadata)) != json.dumps(thaw_json(b.metadata)):
         out.append("metadata: differs")
+    anatomy_differences(a.anatomy, b.anatomy, array, value, out)
     return out[:limit]
+
+
+def anatomy_differences(a: Anatomy, b: Anatomy, array, value, out: list[str]) -> None:
+    """Append to ``out`` the paths where two anatomies differ (``array``/``value`` compare and report)."""
+    if len(a.creases) != len(b.creases):
+        out.append(f"anatomy.creases: {len(a.creases)} vs {len(b.creases)} items")
+    else:
+        for i, (x, y) in enumerate(zip(a.creases, b.creases, strict=True)):
+            value(f"anatomy.creases[{i}].name", x.name, y.name)
+            value(f"anatomy.creases[{i}].gains", dict(x.gains), dict(y.gains))
+            array(f"anatomy.creases[{i}].vertices", x.vertices, y.vertices)
+            array(f"anatomy.creases[{i}].offsets_rel", x.offsets_rel, y.offsets_rel)
+    array("anatomy.skull.vertices", a.skull.vertices, b.skull.vertices)
+    array("anatomy.skull.surface", a.skull.surface, b.skull.surface)
+    array("anatomy.lip_contact", a.lip_contact, b.lip_contact)
+    for name in ("vertices", "triangles", "bary", "offsets", "weights"):
+        array(f"anatomy.accessories.{name}", getattr(a.accessories, name), getattr(b.accessories, name))
+    array("anatomy.thickness_rel", a.thickness_rel, b.thickness_rel)
 
 
 def rigs_equal(a: Rig, b: Rig) -> bool:

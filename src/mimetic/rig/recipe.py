@@ -20,7 +20,7 @@ from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.head.shape import skin_geometry, smoothstep
 from mimetic.head.topology import build_topology
-from mimetic.mesh.geometry import closest_on_polyline
+from mimetic.mesh.geometry import closest_on_polyline, neighbour_mean
 from mimetic.mesh.model import SurfacePoint
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
 
@@ -385,12 +385,10 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     for ids in (lower, upper, cavity):
         jaw[ids] += near[ids] * (CORNER_JAW - jaw[ids])
     faces = head.mesh.faces[np.concatenate([head.mesh.parts[p] for p in ("skin", "mouth")])]
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    A = sp.csr_matrix((np.ones(2 * len(edges)), (edges.ravel(), edges[:, ::-1].ravel())), shape=(n, n))
-    A = sp.diags(1.0 / np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1.0)) @ A  # neighbour mean
+    average = neighbour_mean(faces, n)
     around = np.nonzero(to_corner < MODIOLUS_RADIUS)[0]
     for _ in range(10):
-        jaw[around] = (A @ jaw)[around]
+        jaw[around] = (average @ jaw)[around]
     parts = head.mesh.parts
     for part, value in (
         ("teeth_lower", 1.0),

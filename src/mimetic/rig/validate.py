@@ -141,6 +141,46 @@ def validate_rig(rig: Rig) -> None:
     # ---- metadata
     freeze_json(rig.metadata, "metadata")
 
+    # ---- anatomy
+    _check_anatomy(rig)
+
+
+def _check_anatomy(rig: Rig) -> None:
+    """The anatomy's indices point at the rig's vertices, its arrays have the rig's sizes."""
+    anatomy, n = rig.anatomy, rig.n_vertices
+    fix = "re-derive it: dataclasses.replace(rig, anatomy=None)"
+    for i, crease in enumerate(anatomy.creases):
+        where = f"anatomy.creases[{i}] {crease.name!r}"
+        _check_indices(crease.vertices, n, f"{where}.vertices", "vertices")
+        if crease.offsets_rel.shape != (len(crease.vertices), 3) or not np.isfinite(crease.offsets_rel).all():
+            raise RigError(
+                f"{where}.offsets_rel must be finite with shape ({len(crease.vertices)}, 3); {fix}"
+            )
+        unknown = [c for c in crease.gains if c not in rig.channel_names]
+        if unknown:
+            raise RigError(f"{where}.gains names channels the rig lacks: {unknown[:3]}; {fix}")
+    skull = anatomy.skull
+    _check_indices(skull.vertices, n, "anatomy.skull.vertices", "vertices")
+    if skull.surface.shape != (len(skull.vertices), 3):
+        raise RigError(f"anatomy.skull.surface must have shape ({len(skull.vertices)}, 3); {fix}")
+    if anatomy.lip_contact.ndim != 2 or anatomy.lip_contact.shape[1] != 2:
+        raise RigError(f"anatomy.lip_contact must have shape (k, 2); {fix}")
+    _check_indices(anatomy.lip_contact.ravel(), n, "anatomy.lip_contact", "vertices")
+    acc = anatomy.accessories
+    a = len(acc.vertices)
+    _check_indices(acc.vertices, n, "anatomy.accessories.vertices", "vertices")
+    _check_indices(acc.triangles.ravel(), n, "anatomy.accessories.triangles", "vertices")
+    for name, shape in (
+        ("triangles", (a, 3)),
+        ("bary", (a, 3)),
+        ("offsets", (a, 3)),
+        ("weights", (a, rig.n_bones)),
+    ):
+        if getattr(acc, name).shape != shape:
+            raise RigError(f"anatomy.accessories.{name} must have shape {shape}; {fix}")
+    if anatomy.thickness_rel.shape != (n,) or not np.isfinite(anatomy.thickness_rel).all():
+        raise RigError(f"anatomy.thickness_rel must be finite with shape ({n},); {fix}")
+
 
 def _names(names: Iterable[str], limit: int = 6) -> str:
     names = list(names)

@@ -1,11 +1,10 @@
-"""A rig across an unwelded seam: onto the welded mesh for the engines, and back onto the user's.
+"""A rig made on a welded mesh, moved back onto the user's own vertices across its unwelded seams.
 
 ``rig_head`` fits and transfers on the user's mesh with its seams merged (``mimetic.mesh.weld``)
 and then moves the rig back onto the user's own vertices with ``unweld_rig``: coincident copies
-take the same skin weights, regions and wire sets, so a skinned export moves them together. The
-engines run on ``weld_rig(rig)``, so what uses the topology (normals, neighbours, separate pieces)
-sees one surface, and ``deform`` hands every copy its welded vertex's position: coincident
-vertices stay coincident in every pose.
+take the same skin weights, regions and wire sets, so a skinned export moves them together, and
+the anatomy is derived again across the seams (``mimetic.rig.anatomy``), so the engines, which
+work from positions and that anatomy, move every copy to the same place in every pose.
 """
 
 from __future__ import annotations
@@ -15,9 +14,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh, SurfacePoint
-from mimetic.mesh.weld import Weld, find_weld
+from mimetic.mesh.weld import Weld
 from mimetic.rig.model import Rig
 
 
@@ -42,30 +40,8 @@ def _mapped(
             for w in rig.wires
         ),
         skin_weights=rig.skin_weights[rows],
+        anatomy=None,  # derived again on the new mesh
     )
-
-
-def weld_rig(rig: Rig) -> tuple[Rig, Weld]:
-    """The rig on its mesh with the unwelded seams merged, and the weld (``weld.index`` maps the
-    rig's vertices to the welded ones). The rig itself when there is no seam."""
-    weld = find_weld(rig.mesh)
-    if weld.n_merged == 0:
-        return rig, weld
-    welded_faces = weld.face_of(np.arange(rig.mesh.n_faces))
-    mesh = weld.mesh
-
-    def point(p: SurfacePoint) -> SurfacePoint:
-        face = int(welded_faces[p.face])
-        if face >= 0:
-            return SurfacePoint(face, p.bary)
-        # a sliver that collapsed: the nearest point of the welded surface
-        hit = closest_points(mesh.vertices, mesh.faces, p.position(rig.mesh.vertices, rig.mesh.faces)[None])
-        return SurfacePoint(int(hit.faces[0]), tuple(float(b) for b in hit.bary[0]))
-
-    def vertex_set(ids: np.ndarray) -> np.ndarray:
-        return np.unique(weld.index[ids])
-
-    return _mapped(rig, mesh, weld.first, vertex_set, point), weld
 
 
 def unweld_rig(rig: Rig, weld: Weld, mesh: Mesh) -> Rig:

@@ -1,0 +1,150 @@
+"""``Anatomy``, the rig's anatomical data, and ``derive_anatomy``, which computes it for a rig.
+
+See the package docstring for what each element is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from mimetic.mesh.geometry import vertex_normals
+from mimetic.mesh.model import Mesh, SurfacePoint
+from mimetic.mesh.weld import find_weld
+from mimetic.rig.anatomy.accessories import Accessories, find_accessories
+from mimetic.rig.anatomy.creases import Crease, find_creases
+from mimetic.rig.anatomy.lips import lip_contact
+from mimetic.rig.anatomy.skull import Skull, forehead_skull
+from mimetic.rig.anatomy.tissue import tissue_thickness
+
+SKIN_PARTS = ("skin", "mouth")
+"""The deformable surface: the parts muscles, creases and tissue act on (others follow bones)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Anatomy:
+    """The rig's anatomy (see the package docstring).
+
+    Attributes
+    ----------
+    creases : tuple of Crease
+    skull : Skull
+    lip_contact : (k, 2) int64
+        (upper lip, lower lip) vertex pairs that touch at rest.
+    accessories : Accessories
+    thickness_rel : (n,) float64
+        Soft-tissue thickness under each vertex, × the head height; 0 off the skin.
+    """
+
+    creases: tuple[Crease, ...]
+    skull: Skull
+    lip_contact: np.ndarray
+    accessories: Accessories
+    thickness_rel: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "creases", tuple(self.creases))
+        for name, dtype in (("lip_contact", np.int64), ("thickness_rel", np.float64)):
+            array = np.array(getattr(self, name), dtype=dtype, copy=True)
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+        if self.lip_contact.size == 0:
+            object.__setattr__(self, "lip_contact", self.lip_contact.reshape(0, 2))
+
+
+def skin_vertices(mesh: Mesh) -> np.ndarray:
+    """Sorted indices of the deformable vertices (``SKIN_PARTS``), or all of them without parts."""
+    parts = [p for p in SKIN_PARTS if p in mesh.parts]
+    if not parts:
+        return np.arange(mesh.n_vertices)
+    return np.unique(np.concatenate([mesh.faces[mesh.parts[p]].ravel() for p in parts]))
+
+
+def _anatomy(
+    mesh: Mesh,
+    landmarks: Mapping[str, SurfacePoint],
+    regions: Mapping[str, np.ndarray],
+    skin_weights: sp.spmatrix,
+    scale: float,
+    channel_names: set[str],
+) -> Anatomy:
+    """Every element of the anatomy of a mesh without unwelded seams."""
+    v, f = mesh.vertices, mesh.faces
+    skin = skin_vertices(mesh)
+    deformable = [mesh.parts[p] for p in SKIN_PARTS if p in mesh.parts]
+    skin_faces = f[np.concatenate(deformable)] if deformable else f
+
+    def landmark(name: str) -> np.ndarray:
+        return landmarks[name].position(v, f)
+
+    normals = vertex_normals(v, f)
+    crease_skin = mesh.part_vertices("skin") if "skin" in mesh.parts else skin
+    return Anatomy(
+        creases=find_creases(v, normals, crease_skin, landmark, set(landmarks), channel_names, scale),
+        skull=forehead_skull(v, regions, scale),
+        lip_contact=lip_contact(v, regions, scale),
+        accessories=find_accessories(mesh, scale, skin_weights),
+        thickness_rel=tissue_thickness(mesh.n_vertices, skin_faces, skin, regions),
+    )
+
+
+def derive_anatomy(
+    mesh: Mesh,
+    landmarks: Mapping[str, SurfacePoint],
+    regions: Mapping[str, np.ndarray],
+    skin_weights: sp.spmatrix,
+    scale: float,
+    channel_names: tuple[str, ...] | set[str],
+) -> Anatomy:
+    """The anatomy of a rig (the rig's rest mesh, landmarks, regions, skin weights and head height
+    ``scale``), computed on the mesh with its unwelded seams merged and handed back to every copy
+    of a merged vertex. Channels the rig lacks drive no crease."""
+    weld = find_weld(mesh)
+    channels = set(channel_names)
+    if weld.n_merged == 0:
+        return _anatomy(mesh, landmarks, regions, skin_weights, scale, channels)
+    welded_faces = weld.face_of(np.arange(mesh.n_faces))
+    points = {}
+    for name, p in landmarks.items():
+        face = int(welded_faces[p.face])
+        if face >= 0:
+            points[name] = SurfacePoint(face, p.bary)
+    merged = {name: np.unique(weld.index[ids]) for name, ids in regions.items()}
+    inner = _anatomy(weld.mesh, points, merged, sp.csr_matrix(skin_weights)[weld.first], scale, channels)
+    # back onto the mesh: every copy of a welded vertex takes its data
+    order = np.argsort(weld.index, kind="stable")
+    starts = np.searchsorted(weld.index[order], np.arange(len(weld.first) + 1))
+
+    def copies(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The original vertices (k,) of welded vertices ``ids`` and, for each, its row in ``ids``."""
+        counts = starts[ids + 1] - starts[ids]
+        rows = np.repeat(np.arange(len(ids)), counts)
+        first = np.repeat(starts[ids], counts)
+        offset = np.arange(len(rows)) - np.repeat(np.cumsum(counts) - counts, counts)
+        return order[first + offset], rows
+
+    creases = []
+    for crease in inner.creases:
+        ids, rows = copies(crease.vertices)
+        creases.append(replace(crease, vertices=ids, offsets_rel=crease.offsets_rel[rows]))
+    skull_ids, rows = copies(inner.skull.vertices)
+    pairs = []
+    for upper, lower in inner.lip_contact:
+        ups, _ = copies(np.array([upper]))
+        lows, _ = copies(np.array([lower]))
+        pairs += [(u, low) for u in ups for low in lows]
+    acc = inner.accessories
+    acc_ids, rows_a = copies(acc.vertices)
+    accessories = Accessories(
+        acc_ids, weld.first[acc.triangles[rows_a]], acc.bary[rows_a], acc.offsets[rows_a], acc.weights[rows_a]
+    )
+    return Anatomy(
+        creases=tuple(creases),
+        skull=Skull(skull_ids, inner.skull.surface[rows]),
+        lip_contact=np.array(pairs, dtype=np.int64).reshape(-1, 2),
+        accessories=accessories,
+        thickness_rel=inner.thickness_rel[weld.index],
+    )

@@ -1,0 +1,93 @@
+"""Tests for mimetic.rig.anatomy: creases, skull, lip contact, accessories and tissue thickness,
+derived by rule on generated heads (whose anatomy is known by construction) and across seams."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mimetic.fit.pipeline import rig_head
+from mimetic.mesh.geometry import vertex_normals
+from mimetic.rig.anatomy import derive_anatomy
+from mimetic.rig.anatomy.tissue import REGION_THICKNESS_REL
+from mimetic.testing import cheek_centre, head_landmarks, small_head, small_rig, unwelded_patch
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return small_rig()
+
+
+def test_rig_anatomy_is_derived_by_rule_and_frozen(rig):
+    again = derive_anatomy(
+        rig.mesh, rig.landmarks, rig.regions, rig.skin_weights, rig.scale, rig.channel_names
+    )
+    assert len(again.creases) == len(rig.anatomy.creases)
+    for a, b in zip(again.creases, rig.anatomy.creases, strict=True):
+        np.testing.assert_array_equal(a.offsets_rel, b.offsets_rel)
+    with pytest.raises(ValueError):
+        rig.anatomy.thickness_rel[0] = 1.0
+
+
+def test_creases_sink_inward_and_are_driven_by_their_muscles(rig):
+    normals = vertex_normals(rig.mesh.vertices, rig.mesh.faces)
+    driven = set()
+    for crease in rig.anatomy.creases:
+        inward = np.einsum("kd,kd->k", crease.offsets_rel, normals[crease.vertices])
+        assert np.all(inward < 0), crease.name
+        assert np.linalg.norm(crease.offsets_rel, axis=1).max() <= 0.008  # the deepest fold's depth
+        driven |= set(crease.gains)
+    for channel in (
+        "frontalis_inner_L",
+        "corrugator_R",
+        "procerus",
+        "orbicularis_oculi_outer_L",
+        "zygomatic_major_R",
+    ):
+        assert channel in driven, channel
+
+
+def test_skull_lies_under_the_forehead(rig):
+    skull = rig.anatomy.skull
+    np.testing.assert_array_equal(skull.vertices, rig.regions["forehead"])
+    assert np.all(skull.surface[:, 2] <= rig.mesh.vertices[skull.vertices, 2])
+
+
+def test_lip_contact_pairs_touch_and_sit_on_their_lips(rig):
+    pairs = rig.anatomy.lip_contact
+    assert pairs.shape[1] == 2 and len(pairs) >= 5
+    assert np.isin(pairs[:, 0], rig.regions["upper_lip"]).all()
+    assert np.isin(pairs[:, 1], rig.regions["lower_lip"]).all()
+    v = rig.mesh.vertices
+    np.testing.assert_allclose(v[pairs[:, 0]], v[pairs[:, 1]], atol=1e-9 * rig.scale)
+
+
+def test_tissue_is_thin_on_the_lids_and_thick_on_the_cheeks(rig):
+    t = rig.anatomy.thickness_rel
+    lids = np.concatenate([rig.regions[f"eyelid_upper_{s}"] for s in "LR"])
+    cheeks = np.concatenate([rig.regions[f"cheek_{s}"] for s in "LR"])
+    assert np.median(t[lids]) < 0.5 * np.median(t[cheeks])
+    assert t.max() <= max(REGION_THICKNESS_REL.values()) and t[rig.mesh.part_vertices("eye_L")].max() == 0.0
+    assert 0.005 < np.median(t[cheeks]) * rig.scale / 1.0 < 2.5  # 0.05-2.5 cm on a 22 cm head
+
+
+def test_generated_heads_carry_no_accessories(rig):
+    assert len(rig.anatomy.accessories) == 0
+
+
+def test_anatomy_across_an_unwelded_seam_gives_every_copy_the_same_data():
+    head = small_head(2)
+    mesh = unwelded_patch(head.mesh, cheek_centre(head), radius=3.0)
+    anatomy = rig_head(mesh, head_landmarks(head)).rig.anatomy
+    n = head.mesh.n_vertices
+    twins = {}  # each copy appended by unwelded_patch -> the original vertex it lies on
+    for k in range(n, mesh.n_vertices):
+        (twin,) = np.flatnonzero(np.all(mesh.vertices[:n] == mesh.vertices[k], axis=1))
+        twins[k] = int(twin)
+    assert len(twins) > 10
+    t = anatomy.thickness_rel
+    assert all(t[k] == t[twin] for k, twin in twins.items())
+    for crease in anatomy.creases:
+        on = dict(zip(crease.vertices.tolist(), map(tuple, crease.offsets_rel), strict=True))
+        assert all(on.get(k) == on.get(twin) for k, twin in twins.items()), crease.name
+    assert len(anatomy.accessories) == 0  # the cut patch is skin, not a piece riding it
