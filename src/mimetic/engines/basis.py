@@ -17,8 +17,8 @@ of frames is then one matrix product per block, ``[1, t][:, terms_b] @ W_b``, wr
 into the output: the neutral is the row multiplied by 1, so there is no separate neutral pass, and
 terms that move nothing in a block cost nothing there. On the default head (13,363 vertices, 50
 channels, 24 correctives) the blocks hold 27 % of the dense ``[neutral; deltas]`` elements. One
-frame is the same products with one row. The vertex order is kept (every rig element refers to
-vertices by index), so the output needs no reordering. The layout is built on the first
+frame is one BLAS GEMV per block, called directly. The vertex order is kept (every rig element
+refers to vertices by index), so the output needs no reordering. The layout is built on the first
 evaluation in each dtype and cached on the basis (``Basis`` is frozen).
 
 Precision
@@ -33,8 +33,8 @@ and the products summed in any order)::
 
 with M_j = max |D_j|, N_max = max |neutral|, K = T + 1, γ_m = m u / (1 - m u), u = 2^-24 and
 η = 2^-148 (underflow); the same formula with u = 2^-53 and η = 2^-1071 bounds float64. On the
-default head that is a few 1e-6 rig units for float32. Zero activations give the float32-rounded
-neutral exactly.
+default head (cm) the float32 bound is ~1e-4 cm for random poses, and float32 stays within 5e-6
+cm of float64. Zero activations give the float32-rounded neutral exactly.
 """
 
 from __future__ import annotations
@@ -45,14 +45,15 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from scipy.linalg import blas
 
 from mimetic.errors import ActivationError, RigError
 from mimetic.rig.activations import check_shape
 
 BLOCK_VERTICES = 512
 """Vertices per block of the evaluation layout (see the module docstring). Smaller blocks skip more
-zeros but cost one more matrix product each; 256-1024 were within 25 % of each other on the
-default head (``benchmarks/bench_basis.py``)."""
+zeros but cost one more BLAS call each; on the default head 512 was the fastest of 128-2048 for
+one frame and for batches, by 10-30 % (``benchmarks/bench_basis.py`` sweeps it)."""
 
 DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 """The dtypes ``evaluate_basis`` computes in."""
@@ -297,9 +298,14 @@ def evaluate_basis(
         _check_range(x[:, 1:], layout, dtype)
     x = x[:, layout.gather].astype(dtype, copy=False)  # (f, Σ (1 + k_b))
     out = np.empty((len(a), 3 * basis.n_vertices), dtype)  # (f, 3n)
-    for start, stop, column, matrix in layout.blocks:
-        # (f, 1 + k_b) @ (1 + k_b, 3 m_b): the block's neutral plus its terms, straight into the output
-        np.matmul(x[:, column : column + len(matrix)], matrix, out=out[:, start:stop])
+    if len(a) == 1:  # one GEMV per block, called directly: numpy's matmul costs ~3 µs more per call
+        gemv, x1, y = blas.get_blas_funcs("gemv", dtype=dtype), x[0], out[0]
+        for start, _, column, matrix in layout.blocks:  # y[start:stop] = W_bᵀ x1[column:column + 1 + k_b]
+            gemv(1.0, matrix.T, x1, 0.0, y, column, 1, start, 1, 0, 1)
+    else:
+        for start, stop, column, matrix in layout.blocks:
+            # (f, 1 + k_b) @ (1 + k_b, 3 m_b): the block's neutral plus its terms, straight into the output
+            np.matmul(x[:, column : column + len(matrix)], matrix, out=out[:, start:stop])
     out = out.reshape(len(a), basis.n_vertices, 3)
     return out[0] if np.ndim(activations) == 1 else out
 
