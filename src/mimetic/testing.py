@@ -260,3 +260,126 @@ def run_cli(*args: object):
     from mimetic.cli import app
 
     return CliRunner().invoke(app, [str(a) for a in args], catch_exceptions=False)
+
+
+# --------------------------------------------------------------------------- motion-quality cases
+# (benchmarks/bench_quality.py, tests/test_quality.py)
+
+ICT_IDENTITY_MODES = 20
+FRONT_COS = 0.3
+"""A generated head's skin vertex is on the face when its chart direction has z above this."""
+MEDIAPIPE_INNER_LIPS = (
+    *(78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308),  # upper, right corner to left
+    *(324, 318, 402, 317, 14, 87, 178, 88, 95),  # lower, left to right
+)
+"""MediaPipe FaceMesh's inner lip contour (``face_mesh_connections.FACEMESH_LIPS``, inner ring)."""
+MEDIAPIPE_EYES = (
+    (263, 249, 390, 373, 374, 380, 381, 382, 362, 398, 384, 385, 386, 387, 388, 466),
+    (33, 7, 163, 144, 145, 153, 154, 155, 133, 173, 157, 158, 159, 160, 161, 246),
+)
+"""MediaPipe FaceMesh's eye contours, the subject's left (+X) then right
+(``FACEMESH_LEFT_EYE``, ``FACEMESH_RIGHT_EYE``)."""
+
+
+def ict_folder() -> Path | None:
+    """The shared ICT-FaceKit folder, or None when the shared data is absent."""
+    root = shared_data_dir()
+    return None if root is None or not (root / "ict-facekit").is_dir() else root / "ict-facekit"
+
+
+def _ict_folder_or_raise(folder: Path | None) -> Path:
+    folder = folder or ict_folder()
+    if folder is None:
+        raise FileNotFoundError(
+            f"ICT-FaceKit data not found: put the shared data beside the repository or set ${SHARED_DATA_ENV}"
+        )
+    return Path(folder)
+
+
+@lru_cache(maxsize=4)
+def ict_expressions(folder: Path | None = None) -> tuple[tuple[str, ...], np.ndarray]:
+    """ICT-FaceKit's 53 expression shapes with ARKit names (not the 4 extras), sorted by name.
+
+    Returns
+    -------
+    names : tuple of str, (53,)
+    deltas : (53, 26719, 3) float64, read-only
+        Each shape minus the neutral, cm.
+    """
+    folder = _ict_folder_or_raise(folder)
+    meta = json.loads((folder / "meta.json").read_text())
+    names = tuple(sorted(meta["expressions"]["names_vertex_indices_json"]))
+    shapes = np.load(folder / "expressions.npz")
+    deltas = np.stack([shapes[name].astype(np.float64) for name in names])
+    deltas.setflags(write=False)
+    return names, deltas
+
+
+@lru_cache(maxsize=32)
+def ict_identity(seed: int, sigma: float = 1.0, folder: Path | None = None) -> Mesh:
+    """An ICT-FaceKit identity head: ``neutral + Σ_k w_k · identity_k`` over the 20 modes.
+
+    ``w = np.random.default_rng(seed).normal(0, sigma, 20)``: ``sigma`` 1 gives the plausible heads
+    ICT's modes are scaled for, 2 stronger ones. Same topology and vertex order as the neutral
+    (every part, cm); deterministic.
+    """
+    folder = _ict_folder_or_raise(folder)
+    neutral, _ = load_ict(folder)
+    modes = np.load(folder / "identities.npz")
+    weights = np.random.default_rng(seed).normal(0.0, sigma, ICT_IDENTITY_MODES)
+    vertices = neutral.vertices.copy()
+    for k, w in enumerate(weights):
+        vertices += w * modes[f"identity{k:03d}"].astype(np.float64)
+    return Mesh(vertices, neutral.faces, units="cm")
+
+
+def ict_face_faces(mesh: Mesh, meta: dict) -> np.ndarray:
+    """The faces (k, 3) of ``mesh`` (ICT's topology) whose vertices all lie in ICT's "Face" part
+    (vertices 0..9408, ``meta["parts"]``): the face the issue's edge-stretch numbers are over."""
+    first, last = next(p["vertex_range"] for p in meta["parts"] if p["name"] == "Face")
+    faces = mesh.faces
+    return faces[((faces >= first) & (faces <= last)).all(axis=1)]
+
+
+def generated_face_faces(head: Head) -> np.ndarray:
+    """The skin faces (k, 3) of a generated head whose three vertices are on the face: chart
+    directions with z > ``FRONT_COS`` (as ``benchmarks/bench_rig.py`` counts the face)."""
+    from mimetic.head.topology import build_topology
+
+    front = np.zeros(head.mesh.n_vertices, dtype=bool)
+    front[: head.n_skin] = build_topology(head.resolution).directions[:, 2] > FRONT_COS
+    faces = head.mesh.faces[head.mesh.parts["skin"]]
+    return faces[front[faces].all(axis=1)]
+
+
+def mediapipe_canonical(folder: Path | None = None) -> Mesh:
+    """MediaPipe's canonical face mesh: 468 vertices, 898 triangles, cm, a face-only mask whose eye
+    openings and mouth slit are closed by triangles."""
+    root = shared_data_dir() if folder is None else None
+    folder = folder or (None if root is None else root / "mediapipe")
+    if folder is None or not (Path(folder) / "canonical.npz").is_file():
+        raise FileNotFoundError(f"MediaPipe canonical mesh not found (set ${SHARED_DATA_ENV})")
+    data = np.load(Path(folder) / "canonical.npz")
+    return Mesh(data["vertices"].astype(np.float64), data["faces"].astype(np.int64), units="cm")
+
+
+def mediapipe_landmarks(mesh: Mesh) -> Landmarks:
+    """The project landmarks at their MediaPipe vertices (``MEDIAPIPE_LANDMARKS``) of the canonical
+    mesh ``mesh`` (no pupils: they are iris points 468+)."""
+    from mimetic.fit.autolandmarks import MEDIAPIPE_LANDMARKS
+    from mimetic.fit.landmarks import Landmarks
+
+    names = tuple(n for n, i in MEDIAPIPE_LANDMARKS.items() if i < mesh.n_vertices)
+    ids = [MEDIAPIPE_LANDMARKS[n] for n in names]
+    return Landmarks(names, mesh.vertices[ids], np.ones(len(names)), "cm", "mediapipe canonical vertices")
+
+
+def mediapipe_face_faces(mesh: Mesh) -> np.ndarray:
+    """The canonical mesh's faces (k, 3) without those that close the mouth slit or an eye opening
+    (all three vertices on the inner lip contour, or on one eye's contour): those must stretch or
+    fold when the mouth opens or the lids close, so they are not the face's skin."""
+    faces = mesh.faces
+    closing = np.zeros(len(faces), dtype=bool)
+    for contour in (MEDIAPIPE_INNER_LIPS, *MEDIAPIPE_EYES):
+        closing |= np.isin(faces, contour).all(axis=1)
+    return faces[~closing]
