@@ -15,7 +15,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from mimetic.head.params import HeadParams
-from mimetic.head.shape import skin_geometry
+from mimetic.head.shape import SUBNASALE_Y0, skin_geometry
 from mimetic.head.topology import EYE_CENTRE, HeadTopology
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
@@ -176,19 +176,23 @@ def skin_landmarks(topo: HeadTopology, mesh: Mesh, pieces: Mapping[str, Mesh]) -
     # nose and midline
     out["glabella"] = nearest(meridian, np.array([0.0, 1.6]), chart)
     out["nasion"] = nearest(meridian, np.array([0.0, 0.9]), chart)
-    nose = meridian[(chart[meridian, 1] < -1.5) & (chart[meridian, 1] > -4.6)]
+    nose = meridian[(chart[meridian, 1] < -1.5) & (chart[meridian, 1] > SUBNASALE_Y0 + 0.3)]
     tip = int(nose[np.argmax(v[nose, 2])])
     out["nose_tip"] = tip
     out["nose_bridge_upper"] = nearest(meridian, np.array([0.0, 0.9 + (chart[tip, 1] - 0.9) / 3]), chart)
     out["nose_bridge_lower"] = nearest(meridian, np.array([0.0, 0.9 + 2 * (chart[tip, 1] - 0.9) / 3]), chart)
     top_of_mouth = topo.mouth.index[-1][topo.mouth.index.shape[1] // 4]  # the outer mouth ring's top
-    out["subnasale"] = nearest(np.append(meridian, top_of_mouth), np.array([0.0, -4.95]), chart)
-    both_sides("nostril", nearest(front, np.array([0.6, -4.6]), chart))
-    both_sides("alar_base", nearest(front, np.array([1.25, -4.75]), chart))
-    both_sides("alare", nearest(front, np.array([1.85, -4.3]), chart))
+    sn = SUBNASALE_Y0  # chart Y of the subnasale on the default head
+    out["subnasale"] = nearest(np.append(meridian, top_of_mouth), np.array([0.0, sn - 0.05]), chart)
+    both_sides("nostril", nearest(front, np.array([0.6, sn + 0.3]), chart))
+    both_sides("alar_base", nearest(front, np.array([1.25, sn + 0.15]), chart))
+    both_sides("alare", nearest(front, np.array([1.85, sn + 0.6]), chart))
 
-    # chin: pogonion = most anterior midline chin point; menton = 45° down-forward normal
-    chin = meridian[(v[meridian, 1] < -9.0) & (v[meridian, 2] > 3.0)]
+    # chin: pogonion = most anterior midline chin point; menton = 45° down-forward normal. The
+    # mouth's skin rings reach down onto the chin, so their midline column counts as midline too.
+    m_skin = topo.mouth.index[topo.mouth.u > 1.0][:, 3 * topo.mouth.index.shape[1] // 4]
+    midline = np.concatenate([meridian, m_skin])
+    chin = midline[(v[midline, 1] < -9.0) & (v[midline, 2] > 3.0)]
     out["pogonion"] = int(chin[np.argmax(v[chin, 2])])
     want = np.array([0.0, -np.sqrt(0.5), np.sqrt(0.5)])
     out["menton"] = int(chin[np.argmax(normals[chin] @ want)])

@@ -96,7 +96,7 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
     eye_r = eye_l * np.array([-1.0, 1.0, 1.0])
     mouth_rim = geo.vertices[topo.mouth.index[0]]
     stomion = geo.mouth_anchor
-    incisal = np.array([0.0, stomion[1] - 0.05, stomion[2] - 1.25])
+    incisal = np.array([0.0, stomion[1] - 0.05, stomion[2] - 1.45])
     lower_incisal = incisal + np.array([0.0, 0.0, -0.15])
     tragus_l = _tragus(geo.vertices[: topo.n_vertices], params)
     pieces = {

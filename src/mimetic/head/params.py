@@ -2,8 +2,9 @@
 
 Every parameter is a dimensionless factor; 1.0 (or 0.0 for offsets) is the default head.
 Lengths that the factors scale are given below relative to the default head height
-(vertex to menton, 22.5 cm), so ``nose_length = 1.1`` makes the nose 10 % longer than the
-default 5.3 cm (0.235 of the head height).
+(vertex to menton, 21.6 cm), so ``nose_length = 1.1`` makes the nose 10 % longer than the
+default 5.6 cm (0.26 of the head height). The lengths are measured between the head's own
+landmarks.
 """
 
 from __future__ import annotations
@@ -16,21 +17,25 @@ from mimetic.errors import MimeticError
 
 # name: (minimum, maximum, what it scales, default length relative to head height)
 PARAM_RANGES: dict[str, tuple[float, float, str]] = {
-    "head_width": (0.90, 1.10, "skull and face width (0.69 of head height)"),
+    "head_width": (0.90, 1.10, "skull and face width (0.73 of head height)"),
     "head_height": (0.92, 1.08, "vertical size of the whole head (1.0 of head height)"),
-    "head_depth": (0.92, 1.08, "front-to-back depth, nose excluded (0.89 of head height)"),
-    "jaw_width": (0.85, 1.15, "bigonial width at the jaw angles (0.49 of head height)"),
+    "head_depth": (
+        0.92,
+        1.08,
+        "front-to-back depth, glabella to the back of the skull (0.91 of head height)",
+    ),
+    "jaw_width": (0.85, 1.15, "bigonial width at the jaw angles (0.54 of head height)"),
     "chin_height": (0.80, 1.20, "stomion-to-menton height (0.18 of head height)"),
-    "nose_length": (0.90, 1.10, "nasion-to-subnasale length (0.235 of head height)"),
-    "nose_width": (0.80, 1.25, "alar width (0.15 of head height)"),
-    "nose_projection": (0.85, 1.15, "nose tip in front of the nasion (0.10 of head height)"),
-    "upper_lip": (0.70, 1.30, "upper vermilion height (0.022 of head height)"),
-    "lower_lip": (0.70, 1.30, "lower vermilion height (0.026 of head height)"),
-    "mouth_width": (0.85, 1.15, "corner-to-corner mouth width (0.20 of head height)"),
-    "eye_spacing": (0.92, 1.08, "inter-pupil distance (0.24 of head height)"),
-    "eye_size": (0.90, 1.10, "palpebral fissure (0.11 of head height) and eyeball size"),
-    "brow_ridge": (0.50, 1.50, "brow-ridge prominence (0.026 of head height)"),
-    "cheekbones": (0.50, 1.50, "zygomatic prominence (0.022 of head height)"),
+    "nose_length": (0.90, 1.10, "nasion-to-subnasale length (0.26 of head height)"),
+    "nose_width": (0.80, 1.25, "alar width (0.17 of head height)"),
+    "nose_projection": (0.85, 1.15, "nose tip in front of the nasion (0.11 of head height)"),
+    "upper_lip": (0.70, 1.30, "upper vermilion height (0.031 of head height)"),
+    "lower_lip": (0.70, 1.30, "lower vermilion height (0.042 of head height)"),
+    "mouth_width": (0.85, 1.15, "corner-to-corner mouth width (0.24 of head height)"),
+    "eye_spacing": (0.92, 1.08, "inter-pupil distance (0.29 of head height)"),
+    "eye_size": (0.90, 1.10, "palpebral fissure (0.12 of head height) and eyeball size"),
+    "brow_ridge": (0.50, 1.50, "brow-ridge prominence (0.018 of head height)"),
+    "cheekbones": (0.50, 1.50, "zygomatic prominence (0.014 of head height)"),
 }
 
 

@@ -92,7 +92,8 @@ def skin_regions(topo: HeadTopology) -> dict[str, np.ndarray]:
     )
     cheek &= ~((np.abs(X) < a[0]) & (Y > a[1]))
     masks["cheek_L"] = cheek & left
-    chin = front & (Y < L.mouth_centre[1] - 1.5) & (np.abs(X) < 2.6) & (v[:, 1] > -12.3) & ~is_mouth
+    # the mouth's outer skin rings reach down onto the chin: they belong to it, not to the lips
+    chin = front & (Y < L.mouth_centre[1] - 1.5) & (np.abs(X) < 2.6) & (v[:, 1] > -12.3) & ~lips & ~fold
     masks["chin"] = chin
     jaw = (v[:, 1] > -12.3) & (v[:, 1] < -4.0) & (v[:, 2] > -3.0) & ~front | (
         front & (Y < L.mouth_centre[1] + 0.5) & ~chin & ~is_mouth & ~fold & ~cheek & (v[:, 1] > -12.3)

@@ -14,6 +14,13 @@ in three steps, none of which changes the topology:
    at the sides (displacing radially would drag features down, see the feasibility note).
    Eyelids lie on a sphere just outside the eyeball; the inner lip rolls back into the mouth.
 
+The default head (every factor 1.0) is a healthy adult face: the base solids, the feature
+heights and the nose were fitted by least squares to the mean neutral face of ICT-FaceKit (a
+morphable model built from light-stage scans; eye line and outer canthi aligned), to within
+0.27 cm RMS over the face, the sides, the top and the back of the head (the previous default:
+0.59 cm). Before that fit the cheeks were hollow under the cheekbones, the lower face receded
+and the nose was long and heavy.
+
 Units are centimetres; the eye line is at y = 0 and the face looks down +Z.
 """
 
@@ -37,7 +44,7 @@ from mimetic.head.topology import (
 EYE_RADIUS = 1.2  # eyeball radius, cm (scaled by eye_size)
 LID_GAP = 0.12  # lid thickness over the eyeball at the margin, cm
 NASION_Y = 0.9  # chart Y of the nasion
-SUBNASALE_DROP = 5.8  # nasion-to-subnasale chart length at nose_length = 1
+SUBNASALE_DROP = 5.4  # nasion-to-subnasale chart length at nose_length = 1
 SUBNASALE_Y0 = NASION_Y - SUBNASALE_DROP  # canonical chart Y of the subnasale
 
 
@@ -67,14 +74,14 @@ class Layout:
     @staticmethod
     def of(p: HeadParams) -> Layout:
         subnasale = NASION_Y - SUBNASALE_DROP * p.nose_length
-        mouth_y = subnasale - 2.4
+        mouth_y = subnasale - 2.5
         return Layout(
             eye_centre=np.array([EYE_CENTRE[0] * p.eye_spacing, EYE_CENTRE[1]]),
             eye_scale=p.eye_size,
             mouth_centre=np.array([0.0, mouth_y]),
             mouth_scale=np.array([p.mouth_width, 1.0]),
             subnasale_y=subnasale,
-            tip_y=subnasale + 1.05 * p.nose_length,
+            tip_y=subnasale + 1.45 * p.nose_length,
             nose_projection=2.5 * p.nose_projection,
             alar_half_width=1.75 * p.nose_width,
             chin_shift=2.6 * (p.chin_height - 1.0),
@@ -120,9 +127,9 @@ def warp_chart(chart: np.ndarray, layout: Layout) -> np.ndarray:
 def eye_margin(t: np.ndarray) -> np.ndarray:
     """Left-eye lid margin (k, 2) relative to the eye centre; t = 0 at the lateral canthus."""
     c, s = np.cos(t), np.sin(t)
-    half = np.where(c >= 0, 1.55, 1.55)  # lateral, medial half-width
-    up = 0.56 * (1.0 - 0.18 * c) * np.abs(s) ** 0.85  # upper lid peaks a little medially
-    low = -0.40 * (1.0 + 0.15 * c) * np.abs(s) ** 1.1
+    half = 1.72  # half-width, lateral and medial
+    up = 0.61 * (1.0 - 0.18 * c) * np.abs(s) ** 0.85  # upper lid peaks a little medially
+    low = -0.44 * (1.0 + 0.15 * c) * np.abs(s) ** 1.1
     y = np.where(s >= 0, up, low) + 0.10 * c - 0.05  # lateral canthus higher (canthal tilt)
     return np.column_stack([half * c * np.abs(c) ** 0.15, y])
 
@@ -145,7 +152,8 @@ def lip_profiles(xi: np.ndarray, p: HeadParams) -> tuple[np.ndarray, np.ndarray]
     return upper, lower
 
 
-MOUTH_HALF = 2.5  # canonical half-width of the mouth (corner to centre), cm
+MOUTH_HALF = 2.75  # canonical half-width of the mouth (corner to centre), cm
+LIP_BULGE = (0.24, 0.26)  # forward bulge of the upper and lower vermilion, cm
 
 
 def mouth_ring_chart(u: np.ndarray, t: np.ndarray, p: HeadParams) -> np.ndarray:
@@ -188,14 +196,14 @@ def _smin(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
 def base_field(p: np.ndarray, params: HeadParams, layout: Layout) -> np.ndarray:
     """Approximate signed distance (…,) of points (…, 3) to the base head (negative inside)."""
     jw, ch = params.jaw_width, layout.chin_shift
-    f = _superellipsoid(p, (0, 2.7, -0.9), (7.75, 8.9, 9.7), 2.0, 2.4)  # cranium
-    f = _smin(f, _ellipsoid(p, (0, -0.8, 1.7), (6.9, 7.4, 7.15)), 2.0)  # upper face
-    f = _smin(f, _ellipsoid(p, (0, -5.4, 3.5), (4.9, 3.6, 6.3)), 1.6)  # maxilla
+    f = _superellipsoid(p, (0, 2.7, -0.3), (7.6, 8.05, 9.4), 2.0, 2.4)  # cranium
+    f = _smin(f, _ellipsoid(p, (0, -1.0, 0.8), (7.35, 10.25, 8.8)), 2.0)  # upper face and cheeks
+    f = _smin(f, _ellipsoid(p, (0, -3.8, 4.75), (6.4, 4.85, 4.15)), 1.6)  # maxilla and midface
     f = _smin(
-        f, _superellipsoid(p, (0, -7.3 - 0.7 * ch, 0.8), (5.6 * jw, 3.4 + 0.3 * ch, 6.6), 2.6, 3.0), 1.4
-    )
-    f = _smin(f, _ellipsoid(p, (0, -9.8 - ch, 5.6), (2.9, 2.2, 3.2)), 1.4)  # chin
-    neck = _superellipsoid(p, (0, -14.0, -2.2), (4.8, 10.0, 4.7), 2.0, 6.0)
+        f, _superellipsoid(p, (0, -7.3 - 0.7 * ch, 1.7), (5.4 * jw, 3.4 + 0.3 * ch, 7.95), 2.6, 3.0), 1.4
+    )  # mandible
+    f = _smin(f, _ellipsoid(p, (0, -10.2 - ch, 6.75), (2.75, 1.6, 2.9)), 1.4)  # chin
+    neck = _superellipsoid(p, (0, -14.0, -1.8), (5.4, 10.0, 5.2), 2.0, 6.0)
     f = _smin(f, neck, 1.6)
     return -_smin(-f, p[..., 1] + 19.5, 1.2)  # neck cut
 
@@ -217,28 +225,33 @@ def base_radius(directions: np.ndarray, params: HeadParams, layout: Layout) -> n
 
 def nose_height(X: np.ndarray, Y: np.ndarray, L: Layout) -> np.ndarray:
     """Height (k,) of the nose above the base surface at chart points."""
-    P, W = 0.95 * L.nose_projection, L.alar_half_width
+    proj, W = L.nose_projection / 2.5, L.alar_half_width
     length = (L.subnasale_y - NASION_Y) / (SUBNASALE_Y0 - NASION_Y)
     span = NASION_Y - L.tip_y
+    top = 2.22 * proj  # ridge height at the tip, before the lobule
     s = np.clip((NASION_Y - Y) / span, 0.0, None)  # 0 nasion .. 1 tip
-    dorsum = np.where(s <= 1, 0.15 + (P - 0.15) * s**1.35, 0.0)
-    width = 0.62 + 0.55 * np.clip(s, 0, 1) ** 1.5
+    rise = np.clip(
+        (s - 0.46 / span) / (1.0 - 0.46 / span), 0.0, 1.0
+    )  # the dorsum rises 0.46 below the nasion
+    dorsum = 0.05 + (top - 0.05) * rise**1.1
+    width = 0.5 + 1.07 * np.clip(s, 0, 1) ** 1.5  # narrow root, broad tip
     below = np.clip((L.tip_y - Y) / (L.tip_y - L.subnasale_y), 0.0, None)  # 0 tip .. 1 subnasale
-    under = np.where((s > 1) & (below <= 1.0), P * (1 - below**1.7) + 0.35 * below, 0.0)
-    under_w = 1.17 - 0.5 * np.clip(below, 0, 1) ** 0.7
+    b = np.clip(below, 0.0, 1.0)
+    under = top * (1 - b**1.7) + 0.99 * b
+    # under the subnasale the columella base fades into the upper lip, without a step
+    under = np.where(below <= 1.0, under, 0.99 * np.exp(-(((L.subnasale_y - Y) / 0.6) ** 2)))
+    under_w = 1.57 - 0.75 * b**0.7
     ridge = np.where(
         s <= 1, dorsum * np.exp(-1.4 * (X / width) ** 2), under * np.exp(-1.4 * (X / under_w) ** 2)
     )
     top_fade = smoothstep(-0.6, 0.4, (NASION_Y + 0.5 - Y) / 0.5)
     ridge = ridge * top_fade
-    tip = 0.42 * _gauss(X, Y, 0.0, L.tip_y + 0.05, 0.72, 0.6)
+    tip = 0.38 * proj * _gauss(X, Y, 0.0, L.tip_y + 0.05, 0.9, 0.87)  # rounded lobule
     alae = 0.0
     for sx in (1.0, -1.0):
-        cx = sx * (W - 0.6)
-        alae = alae + 1.3 * _gauss(X, Y, cx, L.subnasale_y + 0.5, 0.62 * W / 1.75, 0.58 * length)
-        alae = alae - 0.08 * np.exp(
-            -(((np.hypot((X - cx) / 0.85, (Y - L.subnasale_y - 0.5) / 0.8) - 1.0) / 0.18) ** 2)
-        )
+        cx, cy = sx * (W - 0.55), L.subnasale_y + 0.6
+        alae = alae + 1.3 * _gauss(X, Y, cx, cy, 0.65 * W / 1.75, 0.65 * length)
+        alae = alae - 0.08 * np.exp(-(((np.hypot((X - cx) / 0.85, (Y - cy) / 0.8) - 1.0) / 0.18) ** 2))
     return np.maximum(ridge + tip, 0.0) + alae
 
 
@@ -247,7 +260,7 @@ def nostril_push(X: np.ndarray, Y: np.ndarray, L: Layout) -> np.ndarray:
     out = 0.0
     for sx in (1.0, -1.0):
         out = out + _gauss(X, Y, sx * 0.55 * L.alar_half_width / 1.75, L.subnasale_y + 0.32, 0.34, 0.2)
-    return 0.38 * out
+    return 0.25 * out
 
 
 def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) -> np.ndarray:
@@ -255,17 +268,14 @@ def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) 
     ex, ey = L.eye_centre
     ax = np.abs(X)
     h = nose_height(X, Y, L)
-    h += 0.62 * params.brow_ridge * _gauss(ax, Y, ex + 0.1, ey + 1.85, 1.9, 0.62)  # brow ridge
-    h += 0.6 * params.brow_ridge * _gauss(X, Y, 0.0, ey + 1.55, 1.2, 0.8)  # glabella
-    h -= 1.35 * _gauss(ax, Y, ex - 0.25, ey + 0.05, 1.3, 1.0)  # eye socket
-    h -= 0.35 * _gauss(ax, Y, ex - 1.6, ey + 0.2, 0.6, 0.7)  # medial canthus hollow
-    h += 0.55 * params.cheekbones * _gauss(ax, Y, ex + 1.55, -2.4, 1.45, 1.0)  # cheekbones
-    h += 0.5 * _gauss(ax, Y, ex + 0.4, -3.6, 1.7, 1.4)  # malar fat
-    h += 0.35 * _gauss(ax, Y, 4.6, -6.2, 1.6, 1.7)  # buccal fullness
-    h -= 0.15 * _gauss(ax, Y, 6.2, 2.8, 1.0, 1.8)  # temples
-    h -= 0.1 * _gauss(ax, Y, 5.4, -5.4, 1.2, 1.3)  # under cheekbone
+    h += 0.38 * params.brow_ridge * _gauss(ax, Y, ex + 0.1, ey + 1.9, 2.0, 0.7)  # brow ridge
+    h += 0.1 * params.brow_ridge * _gauss(X, Y, 0.0, ey + 1.6, 1.1, 0.8)  # glabella
+    h -= 1.3 * _gauss(ax, Y, ex - 0.25, ey + 0.05, 1.5, 1.1)  # eye socket
+    h -= 0.54 * _gauss(ax, Y, ex - 1.75, ey + 0.2, 0.6, 0.7)  # medial canthus hollow
+    h += 0.3 * params.cheekbones * _gauss(ax, Y, ex + 1.5, -1.9, 1.5, 1.1)  # cheekbones
+    h += 0.15 * _gauss(ax, Y, ex + 0.2, -3.2, 2.0, 1.5)  # malar fat
     mx, my = L.mouth_centre
-    h += 0.95 * _gauss(X, Y, mx, my + 0.4, 2.7 * L.mouth_scale[0], 2.0)  # muzzle
+    h += 1.31 * _gauss(X, Y, mx, my + 0.3, 2.06 * L.mouth_scale[0], 2.0)  # muzzle
     # nasolabial fold: groove along the line from the alar base to beside the mouth corner
     for sx in (1.0, -1.0):
         a = np.array([sx * (L.alar_half_width + 0.05), L.subnasale_y + 0.2])
@@ -275,11 +285,11 @@ def feature_height(X: np.ndarray, Y: np.ndarray, params: HeadParams, L: Layout) 
         dist = np.hypot(X - (a[0] + tt * d[0]), Y - (a[1] + tt * d[1]))
         side = np.sign((X - a[0]) * d[1] - (Y - a[1]) * d[0]) * sx
         fade = np.sin(np.pi * np.clip(tt * 0.9 + 0.1, 0, 1)) ** 0.5
-        h -= 0.16 * fade * np.exp(-((dist / 0.28) ** 2))
-        h += 0.18 * fade * np.exp(-(((dist - 0.6) / 0.5) ** 2)) * (side < 0)
+        h -= 0.1 * fade * np.exp(-((dist / 0.28) ** 2))
+        h += 0.15 * fade * np.exp(-(((dist - 0.6) / 0.5) ** 2)) * (side < 0)
     h -= 0.10 * _gauss(ax, Y, 0.32, L.subnasale_y - 1.0, 0.12, 0.8)  # philtrum groove
-    h -= 0.32 * _gauss(X, Y, 0.0, my - 1.85, 1.6, 0.42)  # mentolabial sulcus
-    h += 0.45 * _gauss(X, Y, 0.0, my - 3.0 - L.chin_shift, 1.5, 0.9)  # chin boss
+    h -= 0.23 * _gauss(X, Y, 0.0, my - 1.85, 1.6, 0.42)  # mentolabial sulcus
+    h += 0.22 * _gauss(X, Y, 0.0, my - 3.0 - L.chin_shift, 1.5, 0.9)  # chin boss
     return h
 
 
@@ -369,7 +379,7 @@ def skin_geometry(topo: HeadTopology, params: HeadParams) -> SkinGeometry:
         elif u == 0:
             v[ids, 2] -= 0.24 * corner_fade + 0.05
         else:
-            bulge = np.where(upper, 0.36 * params.upper_lip, 0.34 * params.lower_lip)
+            bulge = np.where(upper, LIP_BULGE[0] * params.upper_lip, LIP_BULGE[1] * params.lower_lip)
             peak = np.where(upper, 0.8, 0.5)
             prof = np.exp(-(((min(u, 1.0) - peak) / 0.55) ** 2)) * np.exp(-((max(u - 1.0, 0.0) / 0.3) ** 2))
             ridge = 0.04 if u == 1 else 0.0

@@ -27,9 +27,9 @@ from scipy.spatial import ConvexHull
 from mimetic.head.params import HeadParamError
 
 CHART_D = 10.0  # gnomonic chart distance, cm
-EYE_CENTRE = np.array([3.15, 0.0])  # left eye (+X, the subject's left) in the canonical chart
+EYE_CENTRE = np.array([3.5, 0.0])  # left eye (+X, the subject's left) in the canonical chart
 EYE_OUTER = (2.75, 2.25)  # semi-axes of the outermost eye ring
-MOUTH_CENTRE = np.array([0.0, -7.3])
+MOUTH_CENTRE = np.array([0.0, -7.0])
 MOUTH_OUTER = (4.4, 2.35, 3.15)  # semi-axes: half-width, up, down
 
 
