@@ -3,6 +3,8 @@ small generated head (and the shared data's MediaPipe mask where a metric must r
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -247,6 +249,21 @@ def test_find_lid_margins_open_eyes_of_a_symmetric_head(rig, rest):
         assert not gaps[side].crossing and gaps[side].smallest > 0
     # the generated head is mirror symmetric: both eyes measure the same
     np.testing.assert_allclose(gaps["L"].gaps, gaps["R"].gaps, atol=1e-9)
+
+
+def test_find_lid_margins_ignores_separate_pieces_the_lid_regions_reach(rig):
+    """ICT's transferred lid regions hold its eyelashes, separate pieces in front of the eye with rims
+    of their own: margins come from the skin alone. Here the eyeball's front stands in for them."""
+    eyeball = np.unique(rig.mesh.faces[rig.mesh.parts["eye_L"]])
+    front = eyeball[(rig.mesh.vertices[eyeball] - rig.bone("eye_L").head)[:, 2] > 0.0]
+    regions = dict(rig.regions)
+    regions["eyelid_upper_L"] = np.union1d(regions["eyelid_upper_L"], front)
+    regions["eyelid_lower_L"] = np.union1d(regions["eyelid_lower_L"], front)
+    reaching = dataclasses.replace(rig, regions=regions, anatomy=rig.anatomy)
+    clean, margins = quality.find_lid_margins(rig, "L"), quality.find_lid_margins(reaching, "L")
+    assert margins.usable
+    np.testing.assert_array_equal(margins.upper, clean.upper)
+    np.testing.assert_array_equal(margins.lower, clean.lower)
 
 
 def test_lid_gap_closes_with_both_upper_lids_at_maximum(rig, wire, rest):

@@ -28,13 +28,13 @@ Definitions (lengths in rig units, ``Rig.units``; the issue's targets are in cm)
 * **Lid margins** (``find_lid_margins``): per eye, an eye frame from the rest mesh: origin at the
   inner eye corner, ``u`` along the chord to the outer corner (``width`` = its length), ``w`` the
   gaze (the eye bone's axis, made orthogonal to ``u``), ``v = w × u`` (up). Candidates: vertices
-  of either eyelid region that lie on the connected piece of mesh the eye corners are on (lashes
-  and other separate accessories are left out), in front of the eyeball centre, with ``u`` between
-  15 % and 85 % of the chord, and on the *rim* seen along the gaze: on a boundary edge (an eye
-  hole) or shared by a face turned toward the viewer and one turned away (where the lid folds into
-  an eye socket, as on ICT). The corner chord splits them into upper (``v > 0``) and lower
-  candidates (the regions are not trusted for that: a transfer blurs them). They are cut into
-  columns along ``u`` as wide as the typical rim edge runs along ``u`` (at most 16); the upper
+  of either eyelid region that lie on the largest connected piece of mesh the regions reach (the
+  skin: lashes and other separate accessories are left out), in front of the eyeball centre, with
+  ``u`` between 15 % and 85 % of the chord, and on the *rim* seen along the gaze: on a boundary
+  edge (an eye hole) or shared by a face turned toward the viewer and one turned away (where the
+  lid folds into an eye socket, as on ICT). The corner chord splits them into upper (``v > 0``)
+  and lower candidates (the regions are not trusted for that: a transfer blurs them). Cut into
+  columns along ``u`` as wide as the typical rim edge runs along ``u`` (at most 16), the upper
   margin is the lowest upper candidate of each column, the lower margin the highest lower one.
   Without rim candidates, or when upper and lower margin vertices in the middle half share a
   triangle, the opening is closed by faces (MediaPipe's mask): the mesh has no real lids
@@ -468,10 +468,12 @@ def find_lid_margins(rig: Rig, side: str) -> LidMargins:
     missing = [r for r in regions if r not in rig.regions or len(rig.regions[r]) == 0]
     if missing:
         return LidMargins(side, empty, empty, origin, axes, width, False, f"no {' or '.join(missing)} region")
-    # the connected piece of mesh the eye corners lie on (leaves out lashes and other accessories)
+    # the largest connected piece of mesh the lid regions reach: the skin (lashes and other
+    # accessories are separate pieces, and a transferred region or landmark may lie on them)
     _, labels = connected_components(F, len(V))
-    pieces = {int(labels[F[rig.landmarks[f"eye_{c}_corner_{side}"].face][0]]) for c in ("inner", "outer")}
-    on_piece = np.isin(labels, list(pieces))
+    sizes = np.bincount(labels)
+    reached = np.unique(labels[np.concatenate([rig.regions[r] for r in regions])])
+    on_piece = labels == reached[np.argmax(sizes[reached])]
     uvw = (V - origin) @ axes.T  # (n, 3)
     in_front = (V - centre) @ axes[2] > 0
     lo, hi = MARGIN_SPAN[0] * width, MARGIN_SPAN[1] * width
