@@ -66,6 +66,7 @@ from mimetic.engines.bake import bake
 from mimetic.fit.pipeline import rig_head
 from mimetic.head.model import DEFAULT_RESOLUTION, make_head
 from mimetic.head.params import HeadParams
+from mimetic.mesh.geometry import face_normals
 from mimetic.mesh.model import Mesh, SurfacePoint
 from mimetic.quality import (
     ICT_JAW_DROP_REL,
@@ -336,12 +337,14 @@ def measure(case: Case, engine_name: str, reference: Reference, rows: Rows) -> N
     # b. lips: flips and stretch over the library; the upper lip under jaw_open alone
     lips = lip_faces(rig, case.faces)
     library = load_library()
-    flips, worst_p99, worst_widest = {}, (0.0, ""), (0.0, "")
+    lip_area = np.linalg.norm(face_normals(rest, lips, unit=False), axis=1) / 2  # (k,)
+    flips, worst_p99, worst_widest, worst_area = {}, (0.0, ""), (0.0, ""), (0.0, "")
     for name in library.names:
         posed = engine.deform(expression_pose(rig, name))
-        count = int(triangle_flips(rest, posed, lips).sum())
-        if count:
-            flips[name] = count
+        flipped = triangle_flips(rest, posed, lips)
+        if flipped.any():
+            flips[name] = int(flipped.sum())
+            worst_area = max(worst_area, (float(lip_area[flipped].sum() / lip_area.sum()), name))
         s = edge_stretch(rest, posed, case.faces)
         worst_p99 = max(worst_p99, (s.p99, name))
         worst_widest = max(worst_widest, (s.widest, name))
@@ -365,6 +368,7 @@ def measure(case: Case, engine_name: str, reference: Reference, rows: Rows) -> N
             str(len(lips)),
             str(sum(flips.values())),
             f"{len(flips)} of {len(library)}" + (f": {shown}{more}" if flips else ""),
+            f"{100 * worst_area[0]:.2f} ({worst_area[1]})" if flips else "0",
             flip_base,
             f"{worst_p99[0]:.2f} ({worst_p99[1]})",
             f"{worst_widest[0]:.2f} ({worst_widest[1]})",
@@ -441,7 +445,8 @@ def tables_abc(cases: list[Case], reference: Reference) -> None:
     )
     print_table(
         f"b. lips: flipped lip triangles (normal turned > 90°) summed over the {len(load_library())} "
-        "library expressions (baseline: ICT's own 53 shapes on the same head), the worst face-edge "
+        "library expressions and the largest flipped share of the lip area in one expression (baseline: "
+        "ICT's own 53 shapes on the same head), the worst face-edge "
         "stretch over the library, and upper-lip follow under jaw_open alone at the matched drop (mean "
         "upper-lip / lower-lip displacement away from the corners; in brackets the upper lip's p99 "
         "displacement); targets: no flips, follow ≤ ICT's jawOpen follow",
@@ -451,6 +456,7 @@ def tables_abc(cases: list[Case], reference: Reference) -> None:
             "lip faces",
             "flips",
             "expressions with flips",
+            "flipped area % (expr)",
             "ICT's own flips",
             "worst p99 (expr)",
             "worst widest cm (expr)",
