@@ -69,11 +69,11 @@ def test_an_unwelded_cheek_patch_moves_as_one_surface(head, clean, engine_name):
         gap = max(np.linalg.norm(posed[g] - posed[g[0]], axis=1).max() for g in groups)
         assert gap < 1e-12 * rig.scale, f"{name}: copies of one vertex part by {gap:.3g} cm"
         # and the patch deforms as the clean head's cheek does there
-        np.testing.assert_allclose(
-            posed[: head.mesh.n_vertices], reference.deform(values), atol=1e-3 * rig.scale
-        )
+        clean_pose = reference.deform(values)
+        np.testing.assert_allclose(posed[: head.mesh.n_vertices], clean_pose, atol=1e-3 * rig.scale)
         stretch = _edge_stretch(mesh.faces[patch], mesh.vertices, posed)
-        assert stretch.max() < 1.5, f"{name}: the patch stretches {stretch.max():.2f}x"
+        clean_stretch = _edge_stretch(head.mesh.faces[patch], head.mesh.vertices, clean_pose)
+        assert stretch.max() < clean_stretch.max() + 0.01, f"{name}: the patch stretches {stretch.max():.2f}x"
 
 
 def test_a_triangle_soup_rigs_and_keeps_every_vertex(head):

@@ -22,7 +22,7 @@ from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
-from mimetic.rig.recipe import build_rig
+from mimetic.rig.recipe import LOWER_LIP_REACH, UPPER_LIP_REACH, build_rig
 from mimetic.testing import ict_landmarks, load_ict, require_shared_data
 
 FIT_NAMES = "no pupils, jaw contour or menton: the points a user would click"
@@ -89,22 +89,24 @@ def test_regions_match_the_targets_own_regions(target: Head, rigged: RigResult) 
 
 
 def test_lips_stay_apart_away_from_the_corners(target: Head, rigged: RigResult) -> None:
-    """No visible upper-lip vertex follows the jaw and no lower-lip vertex stays with the head,
-    except at the mouth corners, where the lips meet and the split is a matter of a vertex. (The
-    regions also hold the first loops of the mouth cavity, hidden 1.5 cm behind the lips, whose
-    upper and lower halves blend.)"""
+    """No upper-lip vertex away from the corners follows the jaw and no lower-lip vertex there stays
+    with the head: the lips share the jaw only near the corners (the modiolus), over the reaches the
+    recipe gives them (``UPPER_LIP_REACH``, ``LOWER_LIP_REACH`` × half the mouth width). (The regions
+    also hold the first loops of the mouth cavity, hidden 1.5 cm behind the lips, whose upper and
+    lower halves blend: only the skin is checked.)"""
     truth = build_rig(target)
     rig = rigged.rig
     v = target.mesh.vertices
     corners = target.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
-    width = np.linalg.norm(corners[0] - corners[1])
-    far = np.linalg.norm(v[:, None, :] - corners[None], axis=2).min(axis=1) > 0.2 * width
-    far[target.n_skin :] = False
+    half = 0.5 * np.linalg.norm(corners[0] - corners[1])
+    reach = np.linalg.norm(v[:, None, :] - corners[None], axis=2).min(axis=1) / half
+    reach[target.n_skin :] = 0.0  # the mouth cavity's loops: not checked
     jaw = rig.skin_weights[:, rig.bone_index("jaw")].toarray().ravel()
-    upper = truth.regions["upper_lip"][far[truth.regions["upper_lip"]]]
-    lower = truth.regions["lower_lip"][far[truth.regions["lower_lip"]]]
-    assert jaw[upper].max() < 0.05
-    assert jaw[lower].min() > 0.95
+    upper = truth.regions["upper_lip"][reach[truth.regions["upper_lip"]] > UPPER_LIP_REACH]
+    lower = truth.regions["lower_lip"][reach[truth.regions["lower_lip"]] > LOWER_LIP_REACH]
+    assert len(upper) > 10 and len(lower) > 10
+    assert jaw[upper].max() < 0.08  # ICT's own jawOpen moves its upper lip's middle by 0.07 of the jaw
+    assert jaw[lower].min() > 0.9
     assert not np.intersect1d(rig.regions["upper_lip"], rig.regions["lower_lip"]).size
 
 
@@ -291,7 +293,8 @@ def test_ict_jaw_opens_and_lips_part(ict_rigged: RigResult) -> None:
     lower = rig.regions["lower_lip"]
     upper = rig.regions["upper_lip"]
     assert moved[lower, 1].mean() < -0.5  # cm: the lower lip drops
-    assert abs(moved[upper, 1].mean()) < 0.2 * abs(moved[lower, 1].mean())
+    # the upper lip is drawn down only toward the corners (ICT's own jawOpen: 0.185 of the lower lip's)
+    assert abs(moved[upper, 1].mean()) < 0.3 * abs(moved[lower, 1].mean())
     forehead = rig.regions["forehead"]
     assert np.abs(moved[forehead]).max() < 1e-9
 
@@ -413,7 +416,7 @@ def test_ict_eyelashes_close_with_the_lid(ict, ict_rigged: RigResult) -> None:
     for side in ("left", "right"):
         first, last = ranges[f"Eyelashes {side}"]
         lashes[side] = np.arange(first, last + 1)
-    attached = engine.chain.attachments.vertices
+    attached = rig.anatomy.accessories.vertices
     assert all(np.isin(ids, attached).all() for ids in lashes.values())
     channel = rig.channels[rig.channel_index("eyelid_upper_L")]
     rest = engine.deform(np.array([c.default for c in rig.channels]))

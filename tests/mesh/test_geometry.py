@@ -14,6 +14,7 @@ from mimetic.mesh.geometry import (
     connected_components,
     edges_unique,
     edges_with_counts,
+    smooth_field,
     vertex_adjacency,
 )
 
@@ -157,3 +158,38 @@ def test_boundary_counts_random_soups_match_boundary_paths():
         assert boundary_counts(faces) == (len(paths.loops), len(paths.chains))
         walked = sum(len(p) for p in paths.loops) + sum(len(p) - 1 for p in paths.chains)
         assert walked == len(boundary_edges(faces))  # every boundary edge walked exactly once
+
+
+def _plane(size: int, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    x, y = np.meshgrid(np.arange(size) - (size - 1) / 2, np.arange(size) - (size - 1) / 2, indexing="ij")
+    vertices = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1) * spacing
+    k = np.arange(size * size).reshape(size, size)
+    a, b, c, d = k[:-1, :-1].ravel(), k[1:, :-1].ravel(), k[1:, 1:].ravel(), k[:-1, 1:].ravel()
+    return vertices, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+def test_smooth_field_turns_a_step_into_a_ramp_of_the_given_length():
+    """Screened Poisson in 1D across a step: 1/2 · exp(−|x|/ℓ) either side, slope 1/(2ℓ) at the step."""
+    vertices, faces = _plane(81, 0.02)  # 1.6 × 1.6 at 0.2 mm spacing
+    step = (vertices[:, 0] > 0).astype(float)
+    for length in (0.05, 0.1):
+        out = smooth_field(step, vertices, faces, length)
+        row = np.flatnonzero(np.abs(vertices[:, 1]) < 1e-9)
+        row = row[np.argsort(vertices[row, 0])]
+        x, y = vertices[row, 0], out[row]
+        inside = (np.abs(x) > 2 * length) & (np.abs(x) < 0.6)
+        expected = np.where(x > 0, 1 - 0.5 * np.exp(-x / length), 0.5 * np.exp(x / length))
+        np.testing.assert_allclose(y[inside], expected[inside], atol=0.03)
+
+
+def test_smooth_field_keeps_constants_and_fixed_vertices_and_the_input():
+    vertices, faces = _plane(11, 0.1)
+    values = np.column_stack([np.full(len(vertices), 2.5), vertices[:, 0] ** 2])
+    before = values.copy()
+    free = vertices[:, 0] > 0
+    out = smooth_field(values, vertices, faces, 0.2, free=free)
+    np.testing.assert_array_equal(values, before)
+    np.testing.assert_allclose(out[:, 0], 2.5)
+    np.testing.assert_array_equal(out[~free], values[~free])
+    assert out.shape == values.shape and not np.allclose(out[free, 1], values[free, 1])
+    np.testing.assert_array_equal(smooth_field(values, vertices, faces, 0.0), values)

@@ -10,7 +10,7 @@ becomes the closest point of the user's deformable surface. Separate user parts 
 reference's eyeballs or teeth become rigid: an eyeball follows its eye bone (placed at the centre
 of a sphere fitted to the user's eyeball), lower teeth and tongue the jaw, upper teeth the head;
 soft mouth parts (gums joined to the tongue) follow their nearer tooth row (``_soft_mouth_jaw``),
-and jumps of the jaw weight across a face are smoothed into slopes (``_smooth_jaw_jumps``). The
+and the jaw weight is diffused over the user's skin so its steps become slopes (``_smooth_jaw``). The
 user's vertices, faces and their order are never changed; the rig lives in the user's frame turned
 by the nearest axis-aligned rotation to +Y up, +Z forward (the identity for meshes already in that
 convention), which ``metadata["source_rotation"]`` undoes.
@@ -27,12 +27,13 @@ from scipy.spatial import cKDTree
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
-from mimetic.mesh.geometry import connected_components, edges_unique, neighbour_mean, vertex_normals
+from mimetic.mesh.geometry import connected_components, smooth_field, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.rig.anatomy import find_accessories
 from mimetic.rig.model import Bone, Rig, Wire
 
 MAX_INFLUENCES = 4
+MIN_WEIGHT = 1e-6  # skin weights below this are 0 (no influence)
 MEMBERSHIP = 0.5  # interpolated indicator from which a vertex belongs to a region or wire set
 RIGID_SHARE = 0.6  # share of a separate part's vertices landing on one rigid reference part
 MAX_TOOTH_SPAN = 2.0  # a mouth part taller than this × the distance between the tooth rows is soft
@@ -45,8 +46,10 @@ RIGID_PARTS = {
 }
 DEFORMABLE_PARTS = ("skin", "mouth", "ear_L", "ear_R")
 MOUTH_PARTS = ("teeth_upper", "teeth_lower", "tongue", "mouth")
-JAW_JUMP = 0.5  # jaw weight difference across one face that the jaw would tear open
-JAW_JUMP_RADIUS = 0.8  # cm (reference frame) around such faces where the jaw weight is smoothed
+CORNER_REACH = (
+    0.5  # the mouth cavity within this × half the mouth width of a corner is smoothed with the lips
+)
+JAW_SMOOTH_REL = 0.022  # diffusion length of the jaw weight over the user's skin, × the head height (3 mm)
 
 
 def rig_frame(to_model: Similarity) -> Similarity:
@@ -69,7 +72,7 @@ def _top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
     if dense.shape[1] > limit:
         cut = -np.partition(-dense, limit - 1, axis=1)[:, limit - 1 : limit]
         dense = np.where(dense >= cut, dense, 0.0)
-    dense[dense < 1e-6] = 0.0
+    dense[dense < MIN_WEIGHT] = 0.0
     dense /= dense.sum(axis=1, keepdims=True)
     return dense
 
@@ -184,39 +187,24 @@ def _soft_mouth_jaw(points: np.ndarray, upper_teeth: np.ndarray, lower_teeth: np
     return smoothstep(0.3, 0.7, d_upper / np.maximum(d_upper + d_lower, 1e-12))
 
 
-def _smooth_jaw_jumps(
-    weights: np.ndarray, vertices: np.ndarray, faces: np.ndarray, radius: float, jaw: int
+def _smooth_jaw(
+    weights: np.ndarray, vertices: np.ndarray, faces: np.ndarray, length: float, jaw: int
 ) -> np.ndarray:
-    """``weights`` (n, bones) with the jaw weight (column ``jaw``) smoothed over ``faces`` within
-    ``radius`` of every face across which it jumps by more than ``JAW_JUMP``, the head bone
-    (column 0) taking the rest.
+    """``weights`` (n, bones) with the jaw weight (column ``jaw``) diffused over ``faces`` by
+    ``length`` (``mesh.geometry.smooth_field``), the head bone (column 0) taking the rest.
 
     The reference's lips meet at its mouth corners; a scan's lips often run on into a commissure
-    fold, and its skin there takes the upper lip's 0 on one side and the lower lip's 1 on the other,
-    across a single row of faces that the jaw then tears open into a wall. (Where the lips really
-    part, no face spans the opening.) Neighbour averaging, as many times as it takes to spread over
-    half the radius at the mesh's edge length there, turns each jump into a slope; the smoothed
-    weight fades back into the interpolated one over the outer half of the radius.
+    fold, and its skin there takes the upper lip's weight on one side and the lower lip's on the
+    other, across a row of faces that the jaw would tear open into a wall. Diffusing the jaw weight
+    over the user's own skin turns every such step into a slope a few ``length`` wide, so no edge
+    stretches much more than its neighbours; where the lips really part no face spans the opening,
+    and their weights stay apart.
     """
-    value = weights[:, jaw].copy()
-    jumps = faces[np.ptp(value[faces], axis=1) > JAW_JUMP]
-    if len(jumps) == 0:
-        return weights
-    distance, _ = cKDTree(vertices[np.unique(jumps)]).query(vertices, distance_upper_bound=radius)
-    local = faces[(distance < radius)[faces].all(axis=1)]
-    edges = edges_unique(local)
-    edge = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1).mean()
-    steps = int(np.clip(np.ceil((0.5 * radius / edge) ** 2), 1, 400))
-    average = neighbour_mean(local, len(vertices))
-    around = np.unique(local)
-    for _ in range(steps):
-        value[around] = (average @ value)[around]
     out = weights.copy()
-    blend = 1.0 - smoothstep(0.5 * radius, radius, distance[around])  # no seam at the radius
-    out[around, jaw] += blend * (value[around] - weights[around, jaw])
-    out[around, 0] = np.clip(1.0 - out[around, 1:].sum(axis=1), 0.0, None)
-    out[around] /= out[around].sum(axis=1, keepdims=True)
-    return out
+    out[:, jaw] = np.clip(smooth_field(weights[:, jaw], vertices, faces, length), 0.0, 1.0)
+    out[out[:, jaw] < MIN_WEIGHT, jaw] = 0.0  # the diffusion's far tail: the forehead stays exactly still
+    out[:, 0] = np.clip(1.0 - out[:, 1:].sum(axis=1), 0.0, None)
+    return out / out.sum(axis=1, keepdims=True)
 
 
 def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: dict | None = None) -> Rig:
@@ -267,9 +255,17 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
         weights[soft_mouth] = 0.0
         weights[soft_mouth, reference.bone_index("head")] = 1.0 - jaw
         weights[soft_mouth, reference.bone_index("jaw")] = jaw
-    soft_faces = user.faces[~in_rigid[user.faces].any(axis=1)]
-    weights = _smooth_jaw_jumps(
-        weights, rig_vertices, soft_faces, JAW_JUMP_RADIUS * to_rig.scale, reference.bone_index("jaw")
+    # the jaw weight is diffused over the skin but not the mouth's cavity away from its corners: the
+    # cavity joins the upper lip's inner loops to the lower lip's, which must keep their own weights
+    mouth = reference.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
+    half_width = 0.5 * np.linalg.norm(mouth[0] - mouth[1])
+    reach = np.linalg.norm(in_model[:, None] - mouth[None], axis=2).min(axis=1) / half_width
+    cavity = np.isin(hit.faces, mesh_ref.parts.get("mouth", np.zeros(0, np.int64))) & (reach > CORNER_REACH)
+    inside = in_rigid | soft_mouth | cavity
+    outer_faces = user.faces[~inside[user.faces].any(axis=1)]
+    scale = reference.scale * to_rig.scale  # the head height, rig units
+    weights = _smooth_jaw(
+        weights, rig_vertices, outer_faces, JAW_SMOOTH_REL * scale, reference.bone_index("jaw")
     )
 
     # regions and wire sets: membership by interpolated indicator
@@ -303,7 +299,6 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     )
     # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
     # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
-    scale = reference.scale * to_rig.scale
     riding = find_accessories(user_rig_mesh, scale, sp.csr_matrix(weights))
     weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
     weights = sp.csr_matrix(weights)

@@ -7,6 +7,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
+from scipy.sparse.linalg import spsolve
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray, *, unit: bool = True) -> np.ndarray:
@@ -137,12 +138,62 @@ def vertex_adjacency(faces: np.ndarray, n: int) -> sparse.csr_matrix:
     return sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
 
 
-def neighbour_mean(faces: np.ndarray, n: int) -> sparse.csr_matrix:
-    """(n, n) operator averaging each vertex's neighbours along the edges of ``faces`` (m, 3):
-    ``vertex_adjacency`` with rows divided by the degree (a vertex without edges averages to 0)."""
-    adjacency = vertex_adjacency(faces, n)
-    degree = np.asarray(adjacency.sum(axis=1)).ravel()
-    return sparse.diags(1.0 / np.maximum(degree, 1.0)) @ adjacency
+def smooth_field(
+    values: np.ndarray,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    length: float,
+    *,
+    free: np.ndarray | None = None,
+) -> np.ndarray:
+    """``values`` diffused over the surface by about ``length``: the package's one smoothing operator.
+
+    Solves the screened Poisson equation ``(I + length² L) x = values`` on the free vertices, with
+    ``L`` the graph Laplacian whose edge weights ``4 / (degree · |edge|²)`` approximate −∇² on any
+    mesh, so ``length`` is a distance in mesh units, whatever the resolution: a step in ``values``
+    becomes a ramp a few ``length`` wide, a field smoother than ``length`` is left nearly as it was.
+    Vertices that are not free keep their values and act as boundary conditions; vertices of no
+    face of ``faces`` are never changed.
+
+    Parameters
+    ----------
+    values : (n,) or (n, k) float64
+    vertices : (n, 3) float64
+    faces : (m, 3) int64
+        The surface to smooth along (e.g. only the skin's faces).
+    length : float
+        Diffusion length, mesh units (0 returns ``values``).
+    free : (n,) bool, optional
+        The vertices to change (default: every vertex of ``faces``).
+
+    Returns
+    -------
+    (n,) or (n, k) float64, a new array.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    out = values.copy()
+    n = len(vertices)
+    edges = _check_n(edges_unique(faces), n)
+    if length <= 0 or len(edges) == 0:
+        return out
+    used = np.zeros(n, dtype=bool)
+    used[edges.ravel()] = True
+    free = used if free is None else (np.asarray(free, dtype=bool) & used)
+    ids = np.flatnonzero(free)
+    if len(ids) == 0:
+        return out
+    edge_sq = np.sum((vertices[edges[:, 0]] - vertices[edges[:, 1]]) ** 2, axis=1)
+    inverse_sq = 1.0 / np.maximum(edge_sq, 1e-300)
+    rows = np.concatenate([edges[:, 0], edges[:, 1]])
+    cols = np.concatenate([edges[:, 1], edges[:, 0]])
+    weight = sparse.csr_matrix((np.tile(inverse_sq, 2), (rows, cols)), shape=(n, n))
+    degree = np.maximum(np.diff(weight.indptr), 1)
+    weight = sparse.diags(4.0 * length**2 / degree) @ weight  # length² × the off-diagonal of L
+    system = sparse.diags(1.0 + np.asarray(weight.sum(axis=1)).ravel()) - weight
+    fixed = np.flatnonzero(~free)
+    rhs = values[ids] + (weight[ids][:, fixed] @ values[fixed] if len(fixed) else 0.0)
+    out[ids] = spsolve(system[ids][:, ids].tocsc(), rhs)
+    return out
 
 
 def connected_components(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:

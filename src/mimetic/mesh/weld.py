@@ -110,8 +110,11 @@ def coincident_groups(vertices: np.ndarray, candidates: np.ndarray, tol: float) 
     return label
 
 
-def find_weld(mesh: Mesh, *, tol_rel: float = WELD_TOL_REL) -> Weld:
-    """Merge the coincident border vertices of ``mesh`` (see the module docstring).
+def find_weld(mesh: Mesh, *, tol_rel: float = WELD_TOL_REL, min_share: float = SEAM_AREA_SHARE) -> Weld:
+    """Merge the coincident border vertices of ``mesh`` (see the module docstring) where the piece
+    they weld together holds at least ``min_share`` of the mesh's area: seams of the skin (a UV seam,
+    a cut patch, a triangle soup), not small pieces touching at their borders (eyelash cards, a tear
+    film against an occlusion shell), which stay separate pieces riding the skin.
 
     Parameters
     ----------
@@ -119,6 +122,8 @@ def find_weld(mesh: Mesh, *, tol_rel: float = WELD_TOL_REL) -> Weld:
         Vertices (n, 3) with finite coordinates, faces (m, 3).
     tol_rel : float
         Coincidence tolerance as a fraction of the bounding-box diagonal.
+    min_share : float
+        Smallest share of the total area a welded piece must hold for its seams to be merged.
 
     Returns
     -------
@@ -133,6 +138,19 @@ def find_weld(mesh: Mesh, *, tol_rel: float = WELD_TOL_REL) -> Weld:
         diagonal = 0.0
     border = np.flatnonzero(border_vertices(f, n))
     label = coincident_groups(v, border, tol_rel * diagonal)
+    if min_share > 0 and (label != np.arange(n)).any():
+        _, piece = mesh_components(label[f], n)  # the pieces the merge would make
+        face_piece = piece[label[f[:, 0]]]
+        area = 0.5 * np.linalg.norm(face_normals(v, f, unit=False), axis=1)
+        share = np.bincount(face_piece, weights=area, minlength=n) / max(area.sum(), 1e-300)
+        _, before = mesh_components(f, n)  # the pieces as they are
+        pieces_before = np.bincount(face_piece, weights=np.ones(len(f)), minlength=n)  # faces per piece
+        loose = np.zeros(n)  # how many of a piece's faces were a piece of their own (a soup's)
+        alone = np.bincount(before[f[:, 0]], minlength=n)[before[f[:, 0]]] == 1
+        np.add.at(loose, face_piece, alone)
+        small = (share < min_share) & (loose < pieces_before)  # small, and not a soup
+        undo = small[piece[label]]
+        label[undo] = np.flatnonzero(undo)  # left as they were
     first, index = np.unique(label, return_inverse=True)  # first: (k,) sorted lowest indices
     index = index.astype(np.int64)
     welded = index[f]  # (m, 3)

@@ -20,16 +20,21 @@ from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.head.shape import skin_geometry, smoothstep
 from mimetic.head.topology import build_topology
-from mimetic.mesh.geometry import closest_on_polyline, neighbour_mean
+from mimetic.mesh.geometry import closest_on_polyline, smooth_field
 from mimetic.mesh.model import SurfacePoint
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
 
 # lengths in cm are those of the reference frame (the default head, 23 cm from crown to menton)
 LID_RIGID_U, LID_FREE_U = 0.2, 0.45  # lid ring parameter u where a lid bone's weight starts / ends fading
-JAW_DEPTH_POWER = 1.5  # jaw weight fades toward the ear as (depth fraction, tragion to chin/corner)**this
-JAW_BORDER_TAPER = (0.0, 4.0)  # cm below the mandible's lower border over which the jaw weight fades to 0
-MODIOLUS_RADIUS = 0.8  # cm around a mouth corner where the lips share the jaw and its weights are smoothed
-CORNER_JAW = 0.45  # jaw weight of the mouth corners (the lower lip rides the jaw, the upper lip stays)
+CHIN_CORE_REL = 0.1  # skin this near the pogonion (× head height), below the lips and in front of
+# the menton, rides the mandible
+NECK_FREE_REL = 0.25  # skin this far below the menton (× head height) stays with the head
+HARMONIC_LENGTH_REL = 0.15  # diffusion length of the jaw weight between those (× head height): it fades like the skin
+CORNER_JAW = 0.5  # jaw weight of the mouth corners (the modiolus: halfway between the lips)
+UPPER_LIP_REACH = (
+    0.9  # the upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width
+)
+LOWER_LIP_REACH = 0.75  # the lower lip's rises from CORNER_JAW to 1 over this × half the mouth width
 EYELID_CLOSED_RAD = 0.75  # upper-lid rotation that closes the eye (larger than any head's lid opening)
 BONES = (
     "head",
@@ -351,53 +356,62 @@ def _skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     topo = build_topology(head.resolution)
     W = np.zeros((n, len(BONES)))
     stomion = head.landmark_positions(["upper_lip_inner"])[0]
-    # jaw: below the plane through the lip contact line and the jaw pivot, tapered over ~1.5 cm
+    # the mouth cavity: below the plane through the lip contact line and the jaw pivot, tapered
     a = np.array([0.0, stomion[1] - jaw_pivot[1], stomion[2] - jaw_pivot[2]])
     normal = np.array([0.0, a[2], -a[1]]) / np.linalg.norm(a)  # points up-forward
     if normal[1] < 0:
         normal = -normal
-    height = (v - stomion) @ normal
-    jaw = smoothstep(0.3, -1.3, height)
-    # the skin below the mandible's lower border (the line menton - gonion, seen from the side) is
-    # only stretched by the chin: its weight fades with the depth below the border, so the throat stays
-    menton, gonion = head.landmark_positions(["menton", "gonion_L"])
-    border = np.array([0.0, gonion[2] - menton[2], menton[1] - gonion[1]])  # its normal, pointing up
-    border /= np.linalg.norm(border) * np.sign(border[1])
-    below = -((v - menton) @ border)
-    jaw *= 1.0 - smoothstep(JAW_BORDER_TAPER[0], JAW_BORDER_TAPER[1], below)
-    # the skin over the ramus and the masseter is anchored at the ear and stretches over the moving
-    # mandible: the weight falls from the mouth corners toward the ear, as a power of the depth fraction
-    tragion = head.landmark_positions(["tragion_L"])[0]
-    corner, pogonion = head.landmark_positions(["mouth_corner_L", "pogonion"])
-    front = min(corner[2], pogonion[2])  # the chin and the canines, in front of it, are rigid on the bone
-    depth = np.clip((v[:, 2] - tragion[2]) / (front - tragion[2]), 0.0, 1.0)
-    jaw *= depth**JAW_DEPTH_POWER
-    # the lips: the lower lip rides the jaw and the upper lip stays, but the orbicularis ties them at
-    # the corners (the modiolus), where both lips take the corner's share, and around each corner the
-    # weights are smoothed over the surface, so the skin there stretches evenly instead of folding
+    jaw = smoothstep(0.3, -1.3, (v - stomion) @ normal)
+    # the skin: the lower lip and the chin ride the mandible, the upper lip, the nose and everything
+    # above the nose's base or behind the ear stay with the skull, and the cheeks and the skin under
+    # the jaw in between stretch: their weight is the harmonic interpolation of those two (bounded
+    # harmonic weights), which spreads wide over the cheeks and narrows toward the lips, as the jaw
+    # weights measured on captured jaw openings do. At the mouth corners (the modiolus) both lips
+    # take half the jaw's motion, and the share ramps along each lip over most of the half mouth
+    # width, so the opening is a lens and the corners never tear.
     corners = head.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
-    to_corner = np.linalg.norm(v[:, None] - corners[None], axis=2).min(axis=1)
-    near = 1.0 - smoothstep(0.0, MODIOLUS_RADIUS, to_corner)  # 1 at a corner, 0 beyond the modiolus
-    lower, upper = head.regions["lower_lip"], head.regions["upper_lip"]
-    jaw[lower] = 1.0
-    jaw[upper] = 0.0
-    cavity = head.mesh.part_vertices("mouth")  # follows the lips it lines
-    for ids in (lower, upper, cavity):
-        jaw[ids] += near[ids] * (CORNER_JAW - jaw[ids])
-    faces = head.mesh.faces[np.concatenate([head.mesh.parts[p] for p in ("skin", "mouth")])]
-    average = neighbour_mean(faces, n)
-    around = np.nonzero(to_corner < MODIOLUS_RADIUS)[0]
-    for _ in range(10):
-        jaw[around] = (average @ jaw)[around]
+    half_width = 0.5 * float(np.linalg.norm(corners[0] - corners[1]))
+    reach = np.linalg.norm(v[:, None] - corners[None], axis=2).min(axis=1) / half_width
+    alar, pogonion, menton, tragion = head.landmark_positions(
+        ["alar_base_L", "pogonion", "menton", "tragion_L"]
+    )
+    scale = float(v[: head.n_skin, 1].max() - menton[1])  # the head height, crown to menton
+    regions = head.regions
+    lower, upper = regions["lower_lip"], regions["upper_lip"]
+    fixed = np.zeros(n, dtype=bool)
+    value = np.zeros(n)
+    still = [regions[r] for r in ("nose", "forehead", "scalp") if r in regions]
+    still += [regions[f"{r}_{s}"] for r in ("eyelid_upper", "eyelid_lower", "brow") for s in "LR"]
+    skin = head.mesh.part_vertices("skin")
+    above = skin[
+        (v[skin, 1] > alar[1]) | (v[skin, 2] < tragion[2]) | (v[skin, 1] < menton[1] - NECK_FREE_REL * scale)
+    ]
+    for ids in (*still, above, upper):
+        fixed[ids] = True
+    core = skin[
+        (np.linalg.norm(v[skin] - pogonion, axis=1) < CHIN_CORE_REL * scale)
+        & (v[skin, 1] < stomion[1])
+        & (v[skin, 2] > menton[2])  # the chin's front, not the skin under it
+    ]
+    for ids in (regions["chin"], core, lower):
+        fixed[ids], value[ids] = True, 1.0
+    value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(0.0, LOWER_LIP_REACH, reach[lower]))
+    value[upper] = CORNER_JAW * (1.0 - smoothstep(0.0, UPPER_LIP_REACH, reach[upper]))
+    skin_faces = head.mesh.faces[head.mesh.parts["skin"]]
+    free = np.zeros(n, dtype=bool)
+    free[skin] = ~fixed[skin]
+    harmonic = smooth_field(value, v, skin_faces, HARMONIC_LENGTH_REL * scale, free=free)
+    jaw[skin] = harmonic[skin]
+    jaw[lower], jaw[upper] = value[lower], value[upper]  # the lips' loops inside the mouth too
     parts = head.mesh.parts
-    for part, value in (
+    for part, share in (
         ("teeth_lower", 1.0),
         ("tongue", 1.0),
         ("teeth_upper", 0.0),
         ("ear_L", 0.0),
         ("ear_R", 0.0),
     ):
-        jaw[np.unique(head.mesh.faces[parts[part]])] = value
+        jaw[np.unique(head.mesh.faces[parts[part]])] = share
     W[:, BONES.index("jaw")] = jaw
     # eyelids: each column of the lid has the weight that makes a rotation of EYELID_CLOSED_RAD bring
     # its margin to the opposite lid's (so a blink closes the whole fissure, the canthi stay put and

@@ -87,7 +87,7 @@ def _anatomy(
         skull=forehead_skull(v, regions, scale),
         lip_contact=lip_contact(v, regions, scale),
         accessories=find_accessories(mesh, scale, skin_weights),
-        thickness_rel=tissue_thickness(mesh.n_vertices, skin_faces, skin, regions),
+        thickness_rel=tissue_thickness(v, skin_faces, skin, regions, scale),
     )
 
 

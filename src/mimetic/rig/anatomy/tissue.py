@@ -4,7 +4,7 @@ Measured facial soft-tissue depths on adults (forensic tables such as Stephan & 
 from about 2 mm on the eyelids and 3–4 mm over the nasal bones to 5–6 mm on the forehead,
 10–12 mm at the lips and chin and 15–20 mm over the cheeks. ``REGION_THICKNESS_REL`` gives one
 value per region as a fraction of the head height (22.5 cm for the default head), other skin
-takes ``DEFAULT_THICKNESS_REL``, and ``SMOOTHING_STEPS`` rounds of neighbour averaging blend the
+takes ``DEFAULT_THICKNESS_REL``, and diffusing the values over the skin by ``BLEND_REL`` blends the
 regions into each other. The wire and vector engines do not use it; the layered tissue and FEM
 engines lay their tissue between the skin and the skull this far under it.
 """
@@ -15,7 +15,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from mimetic.mesh.geometry import neighbour_mean
+from mimetic.mesh.geometry import smooth_field
 
 REGION_THICKNESS_REL: Mapping[str, float] = {
     "eyelid_upper_L": 0.010,
@@ -41,25 +41,29 @@ REGION_THICKNESS_REL: Mapping[str, float] = {
 """Soft-tissue thickness per region, × the head height (eyelid 2.3 mm … cheek 16 mm on 22.5 cm)."""
 DEFAULT_THICKNESS_REL = 0.030
 """Thickness of skin in no listed region (the sides of the head, the ears' roots), × the head height."""
-SMOOTHING_STEPS = 8
-"""Rounds of neighbour averaging that blend the regions' values across their borders."""
+BLEND_REL = 0.02
+"""Diffusion length that blends the regions' values across their borders, × the head height (~5 mm)."""
 
 
 def tissue_thickness(
-    n_vertices: int, faces: np.ndarray, skin: np.ndarray, regions: Mapping[str, np.ndarray]
+    vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, regions: Mapping[str, np.ndarray], scale: float
 ) -> np.ndarray:
     """Soft-tissue thickness (n,) float64 under each vertex, × the head height; 0 off the skin.
 
     Parameters
     ----------
-    n_vertices : int
+    vertices : (n, 3) float64
+        The rest mesh, rig units.
     faces : (m, 3) int64
-        The faces of the deformable surface (the smoothing follows them).
+        The faces of the deformable surface (the blending follows them).
     skin : (s,) int64
         The skin vertices.
     regions : Mapping[str, (k,) int64]
         The rig's regions; the names of ``REGION_THICKNESS_REL`` are used.
+    scale : float
+        The head height, rig units.
     """
+    n_vertices = len(vertices)
     value = np.zeros(n_vertices)
     value[skin] = DEFAULT_THICKNESS_REL
     for name, thickness in REGION_THICKNESS_REL.items():
@@ -68,8 +72,4 @@ def tissue_thickness(
             value[ids] = thickness
     on_skin = np.zeros(n_vertices, dtype=bool)
     on_skin[skin] = True
-    average = neighbour_mean(faces, n_vertices)
-    for _ in range(SMOOTHING_STEPS):
-        value = np.where(on_skin, average @ value, 0.0)
-        value[on_skin & (value == 0.0)] = DEFAULT_THICKNESS_REL  # skin vertices of no face
-    return value
+    return smooth_field(value, vertices, faces, BLEND_REL * scale, free=on_skin)
