@@ -26,15 +26,18 @@ from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
 
 # lengths in cm are those of the reference frame (the default head, 23 cm from crown to menton)
 LID_RIGID_U, LID_FREE_U = 0.2, 0.45  # lid ring parameter u where a lid bone's weight starts / ends fading
-CHIN_CORE_REL = 0.1  # skin this near the pogonion (× head height), below the lips and in front of
-# the menton, rides the mandible
-NECK_FREE_REL = 0.25  # skin this far below the menton (× head height) stays with the head
-HARMONIC_LENGTH_REL = 0.15  # diffusion length of the jaw weight between those (× head height): it fades like the skin
-CORNER_JAW = 0.5  # jaw weight of the mouth corners (the modiolus: halfway between the lips)
-UPPER_LIP_REACH = (
-    0.9  # the upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width
-)
-LOWER_LIP_REACH = 0.75  # the lower lip's rises from CORNER_JAW to 1 over this × half the mouth width
+CHIN_CORE_REL = 0.1
+"""Skin this near the pogonion (× head height), below the lips and in front of the menton, rides the jaw."""
+NECK_FREE_REL = 0.25
+"""Skin this far below the menton (× head height) stays with the head."""
+HARMONIC_LENGTH_REL = 0.15
+"""Diffusion length (× head height) of the jaw weight between the jaw's and the skull's skin."""
+CORNER_JAW = 0.5
+"""Jaw weight of the mouth corners (the modiolus: halfway between the lips)."""
+UPPER_LIP_REACH = 0.9
+"""The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width."""
+LOWER_LIP_REACH = 0.75
+"""The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width."""
 EYELID_CLOSED_RAD = 0.75  # upper-lid rotation that closes the eye (larger than any head's lid opening)
 BONES = (
     "head",
