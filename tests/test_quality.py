@@ -184,6 +184,26 @@ def test_expression_fidelity_of_a_known_basis():
 # --------------------------------------------------------------------------- on a generated head
 
 
+def test_expression_fidelity_recovers_shapes_the_baked_rig_can_make(rig, wire):
+    from mimetic.engines import bake, evaluate_basis
+    from mimetic.rig.activations import pose
+
+    basis = bake(wire, samples=2).basis
+    poses = np.stack(
+        [
+            pose(rig, {"zygomatic_major_L": 0.6, "jaw_open": 0.2}),
+            pose(rig, {"frontalis_inner_R": 0.8, "orbicularis_oris": 0.5}),
+        ]
+    )
+    deltas = evaluate_basis(basis, poses) - basis.neutral
+    result = quality.expression_fidelity(basis, deltas, names=["smile_open", "brow_pucker"], channels=rig)
+    assert result.residual.shape == (2,)
+    assert result.worst < 0.02  # reproduced but for the regularization's shrinkage
+    random = np.random.default_rng(0).normal(0.0, 0.1, deltas.shape)  # noise no rig makes
+    noise = quality.expression_fidelity(basis, random, names=["a", "b"], channels=rig)
+    assert noise.median > 0.9
+
+
 def test_chin_drop_of_a_translation_is_its_length(rig, rest):
     assert quality.chin_drop(rig, rest, rest + np.array([0.0, -2.0, 0.0])) == pytest.approx(2.0)
 
