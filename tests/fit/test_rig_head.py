@@ -22,7 +22,8 @@ from mimetic.head.model import Head, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
-from mimetic.rig.recipe import LOWER_LIP_REACH, UPPER_LIP_REACH, build_rig
+from mimetic.rig.bones import LOWER_LIP_REACH, UPPER_LIP_REACH
+from mimetic.rig.recipe import build_rig
 from mimetic.testing import ict_landmarks, load_ict, require_shared_data
 
 FIT_NAMES = "no pupils, jaw contour or menton: the points a user would click"

@@ -8,7 +8,8 @@ import scipy.sparse as sp
 
 from mimetic.head.topology import build_topology
 from mimetic.rig import Rig, load_rig, rig_differences, save_rig, validate_rig
-from mimetic.rig.recipe import BONES, CORNER_JAW, build_rig
+from mimetic.rig.bones import BONES, CORNER_JAW
+from mimetic.rig.recipe import build_rig
 from mimetic.rig.validate import MAX_INFLUENCES
 from mimetic.testing import SMALL_RESOLUTION, small_head, small_rig
 
