@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from mimetic.animate.clip import from_expressions
+from mimetic.engines import bake, evaluate_basis, make_engine
 from mimetic.rig.activations import Clip
 from mimetic.testing import small_rig
 from mimetic.view.video import VideoError, render_clip, write_mp4
@@ -87,3 +88,28 @@ def test_missing_audio_and_bad_frames_leave_a_good_file(tmp_path) -> None:
         write_mp4(frames, target, fps=25, size=(64, 64))
     assert target.read_bytes() == b"an old good video"
     assert [p.name for p in tmp_path.iterdir()] == ["keep.mp4"]  # no temporary file left behind
+
+
+class _Recorder:
+    """A renderer that keeps the vertices of every mesh it is asked to draw (and draws grey)."""
+
+    def __init__(self) -> None:
+        self.vertices: list[np.ndarray] = []
+
+    def render(self, mesh, camera, *, size):
+        self.vertices.append(mesh.vertices.copy())
+        return np.full((size[1], size[0], 3), 128, np.uint8)
+
+
+def test_render_clip_poses_frames_by_the_basis_in_float32(clip: Clip, tmp_path) -> None:
+    """With a basis, each frame is ``evaluate_basis`` in float32 (the path the renderer draws)."""
+    rig = small_rig()
+    basis = bake(make_engine(rig, "wire"), correctives=0, samples=1).basis
+    recorder = _Recorder()
+    render_clip(rig, clip, tmp_path / "clip.mp4", basis=basis, size=64, renderer=recorder)
+    values = clip.select(basis.channels).values  # (f, c)
+    assert len(recorder.vertices) == clip.n_frames
+    for drawn, pose in zip(recorder.vertices, values, strict=True):
+        np.testing.assert_array_equal(drawn, evaluate_basis(basis, pose, dtype=np.float32))
+    exact = evaluate_basis(basis, values[10])
+    assert 0 < np.abs(recorder.vertices[10] - exact).max() < 1e-5 * rig.scale  # float32, not float64
