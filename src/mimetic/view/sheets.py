@@ -4,7 +4,8 @@ Both sheets use one face-framed camera per view for all their tiles (``face_came
 the rest skin in front of the ears, between the chin and the brows, with a margin, so muscle
 actions fill the frame and tiles compare like for like. A one-sided muscle's three-quarter tile
 turns its own side toward the camera. ``render_pose`` draws one pose the same way (the CLI's
-``mimetic pose``).
+``mimetic pose``). ``closeup_sheet`` adds close-ups of the mouth corners and eyes of every
+expression (``closeup_camera``), where tears, folds and gaps show first.
 
 Images are (h, w, 3) uint8 arrays, as everywhere in ``mimetic.view``.
 """
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mimetic.engines import Engine, make_engine
-from mimetic.mesh.model import Mesh
+from mimetic.mesh.model import Mesh, surface_positions
 from mimetic.render.camera import VIEWS, Camera
 from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import pose
@@ -262,3 +263,90 @@ def render_pose(
         for v in views
     ]
     return tiles[0][1] if len(tiles) == 1 else contact_sheet(tiles, columns=len(tiles))
+
+
+CLOSEUPS = (
+    ("eye R", ("eye_outer_corner_R", "eye_inner_corner_R"), "R"),
+    ("eye L", ("eye_outer_corner_L", "eye_inner_corner_L"), "L"),
+    ("corner R", ("mouth_corner_R",), "R"),
+    ("corner L", ("mouth_corner_L",), "L"),
+)
+"""The close-ups of ``closeup_sheet``: label, the landmarks whose mean the camera aims at, and the
+side it is turned toward (the subject's right side is the image left, so R comes first)."""
+
+CLOSEUP_HALF_REL = {"eye": 0.09, "corner": 0.06}
+"""Half the height a close-up shows at its target, a fraction of the head height (2 cm around
+an eye, 1.35 cm around a mouth corner on a 22.5 cm head)."""
+
+CLOSEUP_YAW_DEG = 20.0
+"""A close-up turns the face this far toward the camera's side, so the corner's depth shows."""
+
+
+def closeup_camera(
+    rig: Rig,
+    landmarks: Sequence[str],
+    *,
+    vertices: np.ndarray | None = None,
+    half_rel: float = CLOSEUP_HALF_REL["corner"],
+    yaw_deg: float = 0.0,
+    fov_y_deg: float = 28.0,
+) -> Camera:
+    """A camera aimed at the mean of ``landmarks`` on ``vertices`` (n, 3) (a posed mesh; default
+    the rest mesh), from the front turned by ``yaw_deg`` toward the subject's left (negative: right),
+    at the distance where the image height at the target is ``2 * half_rel * rig.scale``.
+
+    The target projects to the image centre; lengths scale with the head, so the framing is the
+    same on any head and in any units.
+    """
+    missing = [n for n in landmarks if n not in rig.landmarks]
+    if missing or not landmarks:
+        raise KeyError(f"no landmark(s) {missing or landmarks}; the rig has {len(rig.landmarks)} landmarks")
+    v = rig.mesh.vertices if vertices is None else np.asarray(vertices, dtype=np.float64)
+    target = surface_positions([rig.landmarks[n] for n in landmarks], v, rig.mesh.faces).mean(axis=0)
+    s, c = math.sin(math.radians(yaw_deg)), math.cos(math.radians(yaw_deg))
+    distance = half_rel * rig.scale / math.tan(math.radians(fov_y_deg) / 2)
+    return Camera(target + distance * np.array([-s, 0.0, c]), target, (0.0, 1.0, 0.0), fov_y_deg)
+
+
+def closeup_sheet(
+    rig: Rig,
+    engine: Engine | str = "wire",
+    library=None,
+    *,
+    size: int = 256,
+    renderer: Renderer | None = None,
+    progress: Progress | None = None,
+) -> np.ndarray:
+    """Rest and every expression of ``library`` (default: the built-in one), one row each: the
+    front face, then close-ups (``CLOSEUPS``) of the right and left eye and the right and left
+    mouth corner, each following its landmarks on the posed mesh.
+
+    Tiles are (size, size), labelled "NAME", "NAME eye R", ..., "NAME corner L"; the sheet is
+    (rows · (size + 24), 5 · size, 3) uint8 with one row per pose (``contact_sheet``). Rigs
+    without the eye or mouth corner landmarks raise ``KeyError`` naming them.
+    """
+    from mimetic.animate.expressions import expression_pose, load_library
+
+    library = library if library is not None else load_library()
+    engine = _engine(rig, engine)
+    renderer = renderer or default_renderer()
+    look = rig_look(rig)
+    face = face_camera(rig)
+    poses = [("rest", pose(rig))] + [(n, expression_pose(rig, library[n])) for n in library.names]
+    tiles = []
+    for done, (name, values) in enumerate(poses):
+        vertices = engine.deform(values)  # (n, 3)
+        mesh = rig.mesh.with_vertices(vertices)
+        tiles.append((name, renderer.render(mesh, face, size=(size, size), look=look)))
+        for label, names, side in CLOSEUPS:
+            camera = closeup_camera(
+                rig,
+                names,
+                vertices=vertices,
+                half_rel=CLOSEUP_HALF_REL[label.split()[0]],
+                yaw_deg=CLOSEUP_YAW_DEG if side == "L" else -CLOSEUP_YAW_DEG,
+            )
+            tiles.append((f"{name} {label}", renderer.render(mesh, camera, size=(size, size), look=look)))
+        if progress:
+            progress(done + 1, len(poses))
+    return contact_sheet(tiles, columns=1 + len(CLOSEUPS))
