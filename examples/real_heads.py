@@ -4,71 +4,78 @@ Run by ``make demo`` after ``mimetic demo``: ``python examples/real_heads.py [OU
 ``mimetic-demo``). It needs the shared data folder (``../shared/data`` beside the repository, or
 ``$MIMETIC_SHARED_DATA``) and says so, without failing, when that is absent.
 
-Writes into ``OUT_DIR/ict/``: the ICT-FaceKit neutral head rigged automatically (MediaPipe
-landmarks, or ICT's own 68 landmark vertices without the ``[track]`` extra) as ``ict.mrig``, the
-landmarks used (``landmarks.json``), its fit report (``ict.fit.json``, ``ict.fit.png``) and the
-expression library on ICT's own mesh (``expressions.png``).
+Three heads, each rigged automatically (MediaPipe landmarks, or ICT's own landmark vertices when
+MediaPipe is missing or finds no face), each in its own folder of ``OUT_DIR``:
+
+* ``ict/``: the ICT-FaceKit neutral head, all its parts (the renderer leaves its eye films out);
+* ``ict_id_s1_sigma1/``, ``ict_id_s1_sigma2/``: ICT identity heads (``mimetic.testing.ict_identity``:
+  the neutral plus ICT's 20 identity modes weighted by N(0, 1) and N(0, 2) draws, seed 1).
+
+Each folder gets the rig (``NAME.mrig``), the landmarks used (``landmarks.json``), the fit report
+(``NAME.fit.json``, ``NAME.fit.png``), the expression library with the wire engine
+(``expressions.png``: front and three-quarter) and its close-ups (``expressions_closeup.png``: each
+expression's face, eyes and mouth corners); ``ict/`` also gets the vector engine's close-ups
+(``expressions_closeup_vector.png``).
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
-import numpy as np
-
 from mimetic.animate.expressions import load_library
-from mimetic.errors import MissingExtraError
+from mimetic.engines import make_engine
+from mimetic.errors import MimeticError
 from mimetic.fit.autolandmarks import auto_landmarks
-from mimetic.fit.landmarks import write_landmarks
+from mimetic.fit.landmarks import Landmarks, write_landmarks
 from mimetic.fit.pipeline import rig_head
 from mimetic.mesh.model import Mesh
 from mimetic.render import Renderer
 from mimetic.rig.format import save_rig
-from mimetic.testing import ict_landmarks, load_ict, shared_data_dir
+from mimetic.testing import ict_identity, ict_landmarks, load_ict, shared_data_dir
 from mimetic.view import save_png
 from mimetic.view.fitreport import fit_report_image
-from mimetic.view.sheets import expression_sheet
+from mimetic.view.sheets import closeup_sheet, expression_sheet
 
-ICT_SHELLS = ("Lacrimal fluid", "Eye blend", "Eye occlusion")
-
-
-def without_ict_shells(mesh: Mesh, meta: dict) -> Mesh:
-    """ICT's head without its transparent eye shells (lacrimal fluid, eye blend, eye occlusion),
-    which render as dark caps over the eyes without a transparency pass. They come after the
-    eyeballs, so the vertices before them keep their indices (the 68 landmarks among them)."""
-    drop = np.zeros(mesh.n_vertices, dtype=bool)
-    for part in meta["parts"]:
-        if part["name"].startswith(ICT_SHELLS):
-            first, last = part["vertex_range"]
-            drop[first : last + 1] = True
-    keep = np.nonzero(~drop)[0]
-    remap = np.full(mesh.n_vertices, -1)
-    remap[keep] = np.arange(len(keep))
-    faces = mesh.faces[~drop[mesh.faces].any(axis=1)]
-    return Mesh(mesh.vertices[keep], remap[faces], units=mesh.units)
+IDENTITIES = ((1, 1.0), (1, 2.0))
+"""(seed, sigma) of the ICT identity heads: one plausible head, one with stronger features."""
 
 
-def rig_ict(folder: Path, renderer: Renderer) -> list[Path]:
-    """Rig the ICT-FaceKit neutral head automatically and pose it; returns the files written."""
-    data = shared_data_dir()
-    mesh, meta = load_ict(data / "ict-facekit")
-    mesh = without_ict_shells(mesh, meta)
+def landmarks_of(mesh: Mesh, meta: dict, renderer: Renderer) -> Landmarks:
+    """Automatic landmarks of ``mesh``, or ICT's own landmark vertices (same topology as the
+    neutral) when MediaPipe is not installed or finds no face."""
     try:
-        landmarks = auto_landmarks(mesh, renderer=renderer)
-    except MissingExtraError as error:
-        landmarks = ict_landmarks(mesh, meta)
-        print(f"note: ICT-FaceKit head rigged from its own landmark vertices ({error})")
+        return auto_landmarks(mesh, renderer=renderer)
+    except MimeticError as error:  # MissingExtraError without [track]; LandmarkError: no face found
+        print(f"note: rigged from ICT's own landmark vertices ({error})")
+        return ict_landmarks(mesh, meta)
+
+
+def rig_and_show(
+    name: str, mesh: Mesh, meta: dict, folder: Path, renderer: Renderer, engines: tuple[str, ...] = ("wire",)
+) -> list[Path]:
+    """Rig ``mesh`` automatically and write its rig, fit report, expression sheet and close-up sheets
+    (one per engine in ``engines``; the wire one is ``expressions_closeup.png``) into ``folder``."""
+    landmarks = landmarks_of(mesh, meta, renderer)
     folder.mkdir(parents=True, exist_ok=True)
-    result = rig_head(mesh, landmarks, metadata={"source": "ict-facekit/neutral.npz"})
+    result = rig_head(mesh, landmarks, metadata={"source": f"ict-facekit: {name}"})
+    rig = result.rig
     files = [
         write_landmarks(landmarks, folder / "landmarks.json"),
-        save_rig(result.rig, folder / "ict.mrig"),
-        result.report.save(folder / "ict.fit.json"),
-        save_png(fit_report_image(result, renderer=renderer), folder / "ict.fit.png"),
+        save_rig(rig, folder / f"{name}.mrig"),
+        result.report.save(folder / f"{name}.fit.json"),
+        save_png(fit_report_image(result, renderer=renderer), folder / f"{name}.fit.png"),
     ]
-    sheet = expression_sheet(result.rig, "wire", load_library(), size=256, renderer=renderer)
-    files.append(save_png(sheet, folder / "expressions.png"))
+    library = load_library()
+    wire = make_engine(rig, "wire")
+    files.append(
+        save_png(expression_sheet(rig, wire, library, renderer=renderer), folder / "expressions.png")
+    )
+    for engine in engines:
+        sheet = closeup_sheet(rig, wire if engine == "wire" else engine, library, renderer=renderer)
+        suffix = "" if engine == "wire" else f"_{engine}"
+        files.append(save_png(sheet, folder / f"expressions_closeup{suffix}.png"))
     return files
 
 
@@ -78,8 +85,16 @@ def main(out_dir: str = "mimetic-demo") -> int:
         print("real heads skipped: no shared data (set MIMETIC_SHARED_DATA to its data folder)")
         return 0
     renderer = Renderer()
-    for path in rig_ict(Path(out_dir) / "ict", renderer):
-        print(f"wrote {path}")
+    neutral, meta = load_ict(data / "ict-facekit")
+    heads = [("ict", neutral, ("wire", "vector"))]
+    for seed, sigma in IDENTITIES:
+        mesh = ict_identity(seed, sigma, data / "ict-facekit")
+        heads.append((f"ict_id_s{seed}_sigma{sigma:g}", mesh, ("wire",)))
+    for name, mesh, engines in heads:
+        start = time.perf_counter()
+        for path in rig_and_show(name, mesh, meta, Path(out_dir) / name, renderer, engines):
+            print(f"wrote {path}")
+        print(f"{name}: {time.perf_counter() - start:.0f} s")
     return 0
 
 

@@ -86,7 +86,13 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
     out = tmp_path / "demo"
     result = run_cli("demo", "-o", str(out), "--resolution", RES)
     assert result.exit_code == 0, result.output
-    for name in ("head.glb", "default.mrig", "default_views.png", "heads_muscles.png"):
+    for name in (
+        "head.glb",
+        "default.mrig",
+        "default_views.png",
+        "heads_muscles.png",
+        "expressions_closeup.png",
+    ):
         assert (out / name).stat().st_size > 1000, name
     assert len(list((out / "rigs").glob("seed_*.mrig"))) == 8
     assert len(list((out / "heads").glob("seed_*.glb"))) == 8

@@ -5,7 +5,8 @@ random heads with their rigs (``heads/seed_N.glb``, ``rigs/seed_N.mrig``), the d
 three angles (``default_views.png``) and a contact sheet of all nine heads with their muscles
 drawn (``heads_muscles.png``). For the default head it also writes the muscle sheets of both
 engines (``muscles_wire.png``, ``muscles_vector.png``: every muscle at full contraction), the
-expression sheets (``expressions.png`` with the wire engine, ``expressions_vector.png``) and each
+expression sheets (``expressions.png`` with the wire engine, ``expressions_vector.png``), the close-ups
+of every expression's eyes and mouth corners (``expressions_closeup.png``, wire engine) and each
 library expression as a posed mesh and a face render (``expressions/NAME.obj``, ``NAME.png``,
 wire engine).
 
@@ -35,7 +36,7 @@ from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
 from mimetic.view.muscles import render_rig
 from mimetic.view.sheet import contact_sheet, save_png
-from mimetic.view.sheets import expression_sheet, muscle_sheet, render_pose
+from mimetic.view.sheets import closeup_sheet, expression_sheet, muscle_sheet, render_pose
 
 Progress = Callable[[int, int], None]
 
@@ -67,7 +68,7 @@ def run_demo(
     files: list[Path] = []
     tiles = []
     jobs: list[int | None] = [None, *seeds]
-    total = len(jobs) + 4 + len(load_library().names) + len(ANIMATION_STEPS)  # heads, sheets, ...
+    total = len(jobs) + 5 + len(load_library().names) + len(ANIMATION_STEPS)  # heads, sheets, ...
     steps = iter(range(1, total + 1))
 
     def tick() -> None:
@@ -145,7 +146,8 @@ def _action_sheets(
     tick: Callable[[], None],
     tile: int = 256,
 ) -> list[Path]:
-    """The muscle sheet and the expression sheet of each engine (the wire one is ``expressions.png``)."""
+    """The muscle sheet and the expression sheet of each engine (the wire one is ``expressions.png``),
+    and the wire engine's close-ups of the expressions' eyes and mouth corners."""
     files = []
     for name, engine in engines.items():
         sheet = muscle_sheet(rig, engine, size=tile, renderer=renderer)
@@ -158,6 +160,9 @@ def _action_sheets(
             save_png(sheet, out / ("expressions.png" if name == "wire" else f"expressions_{name}.png"))
         )
         tick()
+    sheet = closeup_sheet(rig, engines["wire"], library, size=tile, renderer=renderer)
+    files.append(save_png(sheet, out / "expressions_closeup.png"))
+    tick()
     return files
 
 
