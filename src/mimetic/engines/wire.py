@@ -8,10 +8,24 @@ For one wire with control points (CVs) ``c0`` (k, 3) on the rest skin:
    ``c0_k + dL_k`` with ``dL_k = -CONTRACTION ((c0_k - O) . a) a``. A sphincter scales about its
    centre in the face plane instead, and pushes forward (+Z) by PUCKER of that (a pucker).
 2. Each CV's cluster is point-constrained, with normalised weights, to one locator per affecting
-   muscle plus a rest locator: ``dc_k = sum_j w_jk a_j dL_jk / (w0_k + sum_j w_jk a_j)``. The
-   constraint weight of a muscle's locator is keyed to its activation ``a_j`` (a set-driven key),
-   so one muscle alone moves a CV by up to ``w/(w0 + w)`` of its locator motion and several
-   muscles pulling one CV are damped, as the thesis describes. This makes the engine nonlinear.
+   muscle (weight ``w_jk``) plus a rest locator (``w0_k``). The thesis keys each muscle's constraint
+   weight to its activation ``a_j`` (a set-driven key), ``dc_k = sum_j a_j w_jk dL_jk / (w0_k +
+   sum_j a_j w_jk)``, so one muscle alone moves a CV by ``a w dL / (w0 + a w)``: a saturating curve
+   (half an activation gives two thirds of the motion), so control layers (ARKit weights, FACS
+   intensities) do not land linearly and a baked basis, a secant at full activation, misses the
+   middle of every channel. Here each muscle's share is its share at full activation, given the
+   other muscles' activations, times its own activation (``locator_shares``)::
+
+       dc_k = sum_j a_j w_jk dL_jk / (w0_k + w_jk + sum_{i != j} a_i w_ik)
+
+   One muscle alone moves a CV linearly, ``a w / (w0 + w)`` of its locator motion. Where every
+   activation is 0 or 1 this is the thesis's formula exactly, so poses at full activation do not
+   change. Muscles pulling one CV still damp each other (a share falls as the others rise) and
+   the shares sum below 1, so a CV stays within the hull of its rest and locator positions. That
+   damping is the engine's remaining nonlinearity: several muscles on one CV at half activation
+   move it a little more than half as far. (A damping by the ratios of the activations alone would
+   make every combination linear along a ray, but it is not bilinear, so a baked basis with
+   pairwise correctives fits it worse.)
 3. The wire deformer moves each vertex P of the wire's deformation set by
    ``f(d / d0) (D(u) - B(u))``, ``f(x) = (1 - x^2)^2`` for d < d0, where ``u`` is the closest
    point on the rest polyline B, d the distance to it and ``D(u) - B(u)`` the interpolated CV
@@ -59,6 +73,30 @@ def locator_motion(rig: Rig, cv: np.ndarray, muscle: str) -> np.ndarray:
     return (CONTRACTION if m.reversed else -CONTRACTION) * along[:, None] * axis
 
 
+def locator_shares(weights: np.ndarray, rest: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Each muscle locator's share (K, c) of its control point's motion (the module docstring, step 2).
+
+    ``share_kj = a_j w_kj / (w0_k + w_kj + sum_{i != j} a_i w_ki)``: muscle j's share at full
+    activation, given the others' activations, times its own activation.
+
+    Parameters
+    ----------
+    weights : (K, c) float64
+        Constraint weight ``w_kj >= 0`` of channel j's locator on control point k (0: not attached).
+    rest : (K,) float64
+        Rest-locator weight ``w0_k``; ``w0_k + sum_j w_kj > 0``.
+    values : (c,) float64
+        The pose; only channels with a weight count, and those are activations in [0, 1].
+
+    Returns
+    -------
+    shares : (K, c) float64, each >= 0, each row summing to less than 1 when ``w0_k > 0``.
+    """
+    wa = weights * values  # (K, c) activation-keyed constraint weights
+    others = (rest + wa.sum(axis=1))[:, None] - wa  # (K, c) w0 + sum_{i != j} a_i w_i
+    return np.divide(wa, others + weights, out=np.zeros_like(wa), where=wa > 0)
+
+
 class WireEngine:
     """The wire skin/muscle model with the thesis's deformation chain; prepare once, deform often.
 
@@ -98,12 +136,13 @@ class WireEngine:
         self.spread = sp.kron(spread, sp.identity(3), format="csr")  # (3n, 3K)
         self.chain = Chain(rig, skull=skull, creases=creases)
 
+    def cv_motion(self, values: np.ndarray) -> np.ndarray:
+        """Control-point motion (K, 3) for a pose (c,) (the module docstring, step 2)."""
+        return np.einsum("kc,kcd->kd", locator_shares(self.weights, self.rest, values), self.motion)
+
     def muscle_offsets(self, values: np.ndarray) -> np.ndarray:
         """Skin displacement (n, 3) from the muscles alone, for a pose (c,)."""
-        wa = self.weights * values  # (K, c) activation-keyed constraint weights
-        num = np.einsum("kc,kcd->kd", wa, self.motion)
-        dc = num / (self.rest + wa.sum(axis=1))[:, None]  # (K, 3) CV motion
-        return (self.spread @ dc.ravel()).reshape(-1, 3)
+        return (self.spread @ self.cv_motion(values).ravel()).reshape(-1, 3)
 
     def deform(self, values: np.ndarray) -> np.ndarray:
         """Vertex positions (n, 3) for one pose ``values`` (c,) in the rig's channel order."""
