@@ -1,9 +1,23 @@
 """Pieces every engine shares: the deformation chain after the muscles, and muscle geometry.
 
 The chain follows the automated rigging thesis (§4.3.2): muscles -> skull -> creases ->
-skinning -> eyelid sculptors, then the accessories riveted to the skin (``attach``). The muscle
-stage is engine-specific; the rest is here. What the chain acts on (the skull, the creases, the
-lip contact pairs, the accessories) is the rig's anatomy (``Rig.anatomy``): the engines only read it.
+skinning -> lid contact -> eyelid sculptors, then the accessories riveted to the skin (``attach``).
+The muscle stage is engine-specific; the rest is here. What the chain acts on (the skull, the
+creases, the lip and lid contacts, the accessories) is the rig's anatomy (``Rig.anatomy``): the
+engines only read it.
+
+**Lid contact** (``mimetic.rig.anatomy.lids``): the upper lid's contact vertices never pass below
+the lower lid's margin, measured along the eye frame's up axis at each vertex's own position along
+the lid (the frame turns with the head). Where a visible contact vertex would, its column of the
+upper lid is opened back: each upper-lid vertex is skinned as if its lid bone had turned less by
+``Δ(u)``, the largest over the crossing contacts of ``Δ_i`` fading linearly to 0 at
+``LID_COLUMN_REACH`` margin steps along ``u``, where ``Δ_i`` (bisection) puts contact ``i`` on the
+lower margin. The rigid lid plate thus stops as one piece, the skin above it follows by its
+weight, and the lower lid stays where its own bone put it (the upper lid yields, as in a blink onto
+a raised lower lid). After the sculptor, any contact vertex still below (a tucked skirt inside the
+eyeball, a vertex the column missed) is turned about the lid's axis onto the margin by itself,
+which keeps its distance from the eye's centre. A contact vertex that lies below the margin at
+rest may stay that far below, so the rest pose is exact.
 """
 
 from __future__ import annotations
@@ -18,10 +32,16 @@ from mimetic.engines.attach import ride
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.head.parts import eyeball_profile
 from mimetic.rig.anatomy.anatomy import skin_vertices
+from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, eye_frame
 from mimetic.rig.model import Rig
 
 LID_RIGID_WEIGHT = 0.35  # eyelid bone weight from which muscles leave a vertex to the lid
-SCULPTOR_MARGIN_REL = 0.0002  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
+SCULPTOR_MARGIN_REL = LID_CLEARANCE_REL  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
+LID_COLUMN_REACH = 2.0
+"""How far along the lid (in median steps of the lower margin) a contact opens the upper lid's column."""
+LID_MAX_OPENING_RAD = 1.5
+"""The most a contact turns the upper lid back (rad)."""
+LID_BISECTIONS = 30
 
 
 @dataclass(frozen=True)
@@ -31,6 +51,180 @@ class MuscleFrame:
     attachment: np.ndarray  # (3,) bony origin (linear, sheet) or centre (sphincter)
     insertion: np.ndarray  # (3,)
     length: float
+
+
+@dataclass(frozen=True)
+class EyeContact:
+    """One eye's lid contact, prepared for the chain (rest values; see the module docstring)."""
+
+    lid: int  # the upper-lid bone's index
+    head: int  # the head bone's index (the eye frame turns with it)
+    pivot: np.ndarray  # (3,) its head: the lid turns about it
+    origin: np.ndarray  # (3,) the eye frame at rest (``mimetic.rig.anatomy.lids.eye_frame``)
+    axes: np.ndarray  # (3, 3) rows u, v, w
+    layers: tuple  # of (upper (k,), lower (j,), tucked, floor (k,) rig units, rest u (k,))
+    followers: np.ndarray  # (f,) int64 vertices with an upper-lid weight
+    follower_weight: np.ndarray  # (f,) their upper-lid weight
+    follower_u: np.ndarray  # (f,) their rest u
+    reach: float  # rig units along u: how far a contact opens the column
+
+
+def _turn(d: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Vectors ``d`` (k, 3) turned by ``angle`` (k,) rad about the unit ``axis`` (3,) (Rodrigues)."""
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    return d * c + np.cross(axis, d) * s + np.outer(d @ axis, axis) * (1.0 - c)
+
+
+def _lower_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) of a margin polyline (j, 3 in the eye frame), sorted by u."""
+    order = np.argsort(points[:, 0], kind="stable")
+    return points[order, 0], points[order, 1]
+
+
+def _clearance(uvw: np.ndarray, line: tuple[np.ndarray, np.ndarray], *, beyond: bool = True) -> np.ndarray:
+    """How far each point (k, 3 in the eye frame) lies above the margin ``line`` at its u. With
+    ``beyond``, the line runs on level for one of its median steps past either end; farther out (or
+    past the ends without ``beyond``) the clearance is +inf."""
+    u, v = line
+    step = float(np.median(np.diff(u))) if beyond and len(u) > 1 else 0.0
+    within = (uvw[:, 0] >= u[0] - step) & (uvw[:, 0] <= u[-1] + step)
+    return np.where(within, uvw[:, 1] - np.interp(uvw[:, 0], u, v), np.inf)
+
+
+def prepare_lid_contacts(rig: Rig) -> list[EyeContact]:
+    """The rig's lid contacts (``Rig.anatomy.lids``), per eye, with what the chain needs at rest."""
+    out = []
+    v = rig.mesh.vertices
+    weights = rig.skin_weights.tocsc()
+    for side in ("L", "R"):
+        layers_of = [c for c in rig.anatomy.lids if c.side == side]
+        needed = ["head", f"eye_{side}", f"eyelid_upper_{side}"]
+        corners = [f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"]
+        if (
+            not layers_of
+            or any(b not in rig.bone_names for b in needed)
+            or any(c not in rig.landmarks for c in corners)
+        ):
+            continue
+        eye = rig.bone(f"eye_{side}")
+        inner, outer = rig.landmark_positions(corners)
+        origin, axes, _ = eye_frame(inner, outer, eye.tail - eye.head)
+        lid = rig.bone_index(f"eyelid_upper_{side}")
+        layers, steps = [], []
+        for contact in layers_of:
+            rest_upper = (v[contact.upper] - origin) @ axes.T
+            line = _lower_line((v[contact.lower] - origin) @ axes.T)
+            floor = np.minimum(_clearance(rest_upper, line), LID_CONTACT_GAP_REL * rig.scale)
+            layers.append((contact.upper, contact.lower, contact.tucked, floor, rest_upper[:, 0]))
+            if not contact.tucked and len(line[0]) > 1:
+                steps.append(float(np.median(np.diff(line[0]))))
+        column = weights[:, lid].tocoo()
+        order = np.argsort(column.row, kind="stable")
+        rows, data = column.row[order].astype(np.int64), column.data[order]
+        followers, follower_weight = rows[data > 0], data[data > 0]
+        out.append(
+            EyeContact(
+                lid,
+                rig.bone_index("head"),
+                np.asarray(rig.bone(f"eyelid_upper_{side}").head, dtype=np.float64),
+                origin,
+                axes,
+                tuple(layers),
+                followers,
+                follower_weight,
+                (v[followers] - origin) @ axes[0],
+                LID_COLUMN_REACH * (max(steps) if steps else 0.0),
+            )
+        )
+    return out
+
+
+def keep_lids_apart(
+    eye: EyeContact,
+    skinned: np.ndarray,
+    before: np.ndarray,
+    transforms: np.ndarray,
+    *,
+    columns: bool,
+) -> np.ndarray:
+    """``skinned`` (n, 3) with eye's upper lid kept on or above its lower margin (module docstring).
+
+    ``columns``: open the upper lid's columns (skinning with a smaller lid angle, from the pre-skinning
+    positions ``before`` (n, 3)); otherwise turn each crossing contact vertex by itself.
+    Returns a new array, or ``skinned`` itself when nothing crosses.
+    """
+    m, mh = transforms[eye.lid], transforms[eye.head]
+    turn = m[:3, :3]
+    axis = turn[:, 0]  # the lid's hinge: its bone turns about its own x axis
+    pivot = m[:3, :3] @ eye.pivot + m[:3, 3]
+    origin = mh[:3, :3] @ eye.origin + mh[:3, 3]
+    axes = eye.axes @ mh[:3, :3].T  # the eye frame turns with the head
+
+    def frame(points: np.ndarray) -> np.ndarray:
+        return (points - origin) @ axes.T
+
+    out = skinned
+    opening = []  # per visible layer: (rest u of crossing contacts, their Δ)
+    for upper, lower, tucked, least, rest_u in eye.layers:
+        if tucked and columns:  # a skirt inside the eyeball does not hold the lid open
+            continue
+        line = _lower_line(frame(out[lower]))
+        if len(line[0]) < 2:
+            continue
+        crossing = _clearance(frame(out[upper]), line, beyond=not columns) < least
+        if not crossing.any():
+            continue
+        ids = upper[crossing]
+        floor = least[crossing]
+        if columns:
+            w = _upper_weight(eye, ids)
+            rigid = w >= LID_RIGID_WEIGHT  # a contact the lid bone hardly moves cannot open its column
+            ids, floor, at_u, w = ids[rigid], floor[rigid], rest_u[crossing][rigid], w[rigid]
+            if len(ids) == 0:
+                continue
+            arm = (before[ids] - eye.pivot) @ turn.T  # R q: the lid's full swing of each vertex
+            base = out[ids]
+
+            def place(delta: np.ndarray, base=base, w=w, arm=arm) -> np.ndarray:
+                return base + w[:, None] * (_turn(arm, axis, -delta) - arm)
+
+        else:
+            arm = out[ids] - pivot
+
+            def place(delta: np.ndarray, arm=arm) -> np.ndarray:
+                return pivot + _turn(arm, axis, -delta)
+
+        lo, hi = np.zeros(len(ids)), np.full(len(ids), LID_MAX_OPENING_RAD)
+        for _ in range(LID_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            above = _clearance(frame(place(mid)), line, beyond=not columns) >= floor
+            lo, hi = np.where(above, lo, mid), np.where(above, mid, hi)
+        if columns:
+            opening.append((at_u, hi))
+        else:
+            out = out.copy() if out is skinned else out
+            out[ids] = place(hi)
+    if columns and opening:
+        u = np.concatenate([o[0] for o in opening])
+        delta = np.concatenate([o[1] for o in opening])
+        reach = max(eye.reach, 1e-300)
+        fade = np.clip(1.0 - np.abs(eye.follower_u[:, None] - u[None]) / reach, 0.0, None)  # (f, c)
+        field = (fade * delta[None]).max(axis=1)
+        moving = field > 0
+        ids = eye.followers[moving]
+        arm = (before[ids] - eye.pivot) @ turn.T
+        out = out.copy()
+        out[ids] += eye.follower_weight[moving, None] * (_turn(arm, axis, -field[moving]) - arm)
+    return out
+
+
+def _upper_weight(eye: EyeContact, ids: np.ndarray) -> np.ndarray:
+    """The upper-lid weights (k,) of vertices ``ids`` (0 for vertices the lid bone does not move)."""
+    at = np.searchsorted(eye.followers, ids)
+    at = np.clip(at, 0, max(len(eye.followers) - 1, 0))
+    found = len(eye.followers) > 0
+    hit = found & (eye.followers[at] == ids) if found else np.zeros(len(ids), dtype=bool)
+    return np.where(hit, eye.follower_weight[at] if found else 0.0, 0.0)
 
 
 def muscle_frame(rig: Rig, name: str) -> MuscleFrame:
@@ -119,6 +313,7 @@ class Chain:
                 (ids[outside].astype(np.int64), rig.bone_index(f"eye_{side}"), bone.head, bone.tail)
             )
         self.accessories = anatomy.accessories
+        self.lid_contacts = prepare_lid_contacts(rig)
 
     def _eyeball_clearance(self, points: np.ndarray, centre: np.ndarray, gaze: np.ndarray) -> tuple:
         """Distances (k,) of points from the eye centre and the sculptor's limit (k,) for each."""
@@ -130,8 +325,8 @@ class Chain:
         return dist, limit
 
     def apply(self, deformed: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """Lip contact, skull push (+Z onto the rest forehead), creases, skinning, lid sculptors,
-        then the accessories (eyelashes and the like) placed on the skin they ride.
+        """Lip contact, skull push (+Z onto the rest forehead), creases, skinning, lid contact, lid
+        sculptors, then the accessories (eyelashes and the like) placed on the skin they ride.
 
         ``deformed`` (n, 3) is the rest skin moved by the muscles; returns (n, 3).
         """
@@ -150,7 +345,10 @@ class Chain:
         if self.creases.nnz:
             v += (self.creases.T @ values).reshape(-1, 3)
         transforms = bone_transforms(self.rig, values)
+        before = v
         v = linear_blend_skinning(v, self.weights, transforms)
+        for eye in self.lid_contacts:  # the upper lid's columns stop on the lower margin
+            v = keep_lids_apart(eye, v, before, transforms, columns=True)
         for ids, bone, rest_centre, rest_tip in self.lids:
             # sculptor: lids never inside the eyeball (its profile, the cornea included)
             m = transforms[bone]
@@ -159,4 +357,6 @@ class Chain:
             inside = dist < limit
             d = v[ids[inside]] - centre
             v[ids[inside]] = centre + d * (limit[inside] / dist[inside])[:, None]
+        for eye in self.lid_contacts:  # then every contact vertex by itself (and the tucked skirt)
+            v = keep_lids_apart(eye, v, before, transforms, columns=False)
         return ride(self.accessories, self.rig.mesh.vertices, v, transforms) if len(self.accessories) else v

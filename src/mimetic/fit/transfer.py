@@ -29,7 +29,8 @@ from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
 from mimetic.mesh.geometry import connected_components, smooth_field, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
-from mimetic.rig.anatomy import find_accessories
+from mimetic.rig.anatomy import closing_weights, find_accessories
+from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL
 from mimetic.rig.model import Bone, Rig, Wire
 
 MAX_INFLUENCES = 4
@@ -207,6 +208,47 @@ def _smooth_jaw(
     return out / out.sum(axis=1, keepdims=True)
 
 
+def _close_lids(
+    reference: Rig,
+    mesh: Mesh,
+    weights: np.ndarray,
+    regions: dict[str, np.ndarray],
+    bones: list[Bone],
+    landmarks: dict[str, SurfacePoint],
+    scale: float,
+) -> np.ndarray:
+    """``weights`` (n, b) with each upper lid's column closing onto ``mesh``'s own lower lid at the
+    ``eyelid_upper`` channel's maximum, for the eyes whose bones, lid regions and corners the rig has."""
+    names = [b.name for b in bones]
+    out = weights
+    for side in ("L", "R"):
+        corners = [f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"]
+        needed = ("head", f"eye_{side}", f"eyelid_upper_{side}")
+        channel = f"eyelid_upper_{side}"
+        if not all(c in landmarks for c in corners) or not all(b in names for b in needed):
+            continue
+        if channel not in reference.channel_names:
+            continue
+        eye, lid = bones[names.index(f"eye_{side}")], bones[names.index(f"eyelid_upper_{side}")]
+        out = closing_weights(
+            mesh.vertices,
+            mesh.faces,
+            out,
+            regions,
+            side,
+            lid=names.index(f"eyelid_upper_{side}"),
+            head=names.index("head"),
+            pivot=lid.head,
+            corners=np.stack([landmarks[c].position(mesh.vertices, mesh.faces) for c in corners]),
+            centre=eye.head,
+            radius=float(np.linalg.norm(eye.tail - eye.head)),
+            gaze=eye.tail - eye.head,
+            closed_rad=reference.channel(channel).maximum,
+            clearance=LID_CLEARANCE_REL * scale,
+        )
+    return out
+
+
 def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: dict | None = None) -> Rig:
     """The rig of ``reference`` (built on the fitted reference, reference frame) on ``user``'s vertices.
 
@@ -297,12 +339,6 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     user_rig_mesh = Mesh(
         rig_vertices, user.faces, parts=dict(sorted(parts.items())), colors=user.colors, units=user.units
     )
-    # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
-    # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
-    riding = find_accessories(user_rig_mesh, scale, sp.csr_matrix(weights))
-    weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
-    weights = sp.csr_matrix(weights)
-
     # surface points: closest point on the user's deformable surface
     skin_faces = parts["skin"]
     skin_tri = user.faces[skin_faces]
@@ -347,6 +383,15 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
             tail = centre + (tail - head) / np.linalg.norm(tail - head) * radius
             head = centre
         bones.append(Bone(bone.name, bone.parent, head, tail))
+
+    # the upper lids close onto the user's own lower lids at the channel's maximum (a closing made on
+    # the reference's lids lands short of or past a scan's): mimetic.rig.anatomy.closing_weights
+    weights = _close_lids(reference, user_rig_mesh, weights, regions, bones, landmarks, scale)
+    # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
+    # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
+    riding = find_accessories(user_rig_mesh, scale, sp.csr_matrix(weights))
+    weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
+    weights = sp.csr_matrix(weights)
 
     return Rig(
         mesh=user_rig_mesh,

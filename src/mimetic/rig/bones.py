@@ -11,7 +11,10 @@
   lip over ``UPPER_LIP_REACH`` / ``LOWER_LIP_REACH`` of half the mouth width, so the opening is a
   lens and the corners never tear.
 * **Eyelids.** One bone per lid rotating about the eye's centre; each column of the lid is weighted
-  so that ``EYELID_CLOSED_RAD`` brings its margin to the opposite lid's.
+  so that ``EYELID_CLOSED_RAD`` brings its margin to the opposite lid's. The ring topology gives the
+  columns and the lid's fade into the skin; the upper lid's closing weights are then made exact from
+  the head's own margins, as on any rig (``mimetic.rig.anatomy.lids.closing_weights``: skinned as
+  the engines skin, the eyeball sculptor included, and smoothed along the margin).
 * **Eyes.** Rigid on their eye bones.
 
 Lengths in cm are those of the reference frame (the default head, about 22 cm from crown to menton).
@@ -26,6 +29,7 @@ from mimetic.head.model import Head
 from mimetic.head.shape import smoothstep
 from mimetic.head.topology import build_topology
 from mimetic.mesh.geometry import smooth_field
+from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, closing_weights
 from mimetic.rig.model import Bone
 
 LID_RIGID_U, LID_FREE_U = 0.2, 0.45  # lid ring parameter u where a lid bone's weight starts / ends fading
@@ -168,6 +172,25 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     rim = head.mesh.part_vertices("mouth")[: topo.mouth.index.shape[1]]
     W[rim] = W[topo.mouth.index[0]]
     W /= W.sum(axis=1, keepdims=True)
+    # the upper lids close exactly onto the lower ones at EYELID_CLOSED_RAD, from the head's margins
+    for i, side in enumerate("LR"):
+        centre = head.eye_centres[i]
+        W = closing_weights(
+            v,
+            head.mesh.faces,
+            W,
+            regions,
+            side,
+            lid=BONES.index(f"eyelid_upper_{side}"),
+            head=BONES.index("head"),
+            pivot=centre,
+            corners=head.landmark_positions([f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"]),
+            centre=centre,
+            radius=head.eye_radius,
+            gaze=np.array([0.0, 0.0, 1.0]),
+            closed_rad=EYELID_CLOSED_RAD,
+            clearance=LID_CLEARANCE_REL * scale,
+        )
     W[W < 1e-6] = 0.0
     W /= W.sum(axis=1, keepdims=True)
     return sp.csr_matrix(W)

@@ -9,11 +9,14 @@ A ``.mrig`` file is a zip archive (ZIP_DEFLATED) of three members:
   faces (m, 3) int64, parts (k,) int64, colors (n, 3) float32, regions and wire vertex sets
   (k,) int64, wire weights (p,) float64, skin weights as CSR ``data`` (nnz,) float64, ``indices``
   (nnz,) int64 and ``indptr`` (n + 1,) int64, and the anatomy's arrays (crease vertices and
-  offsets, skull vertices and surface, lip contact pairs, accessory rivets, tissue thickness).
+  offsets, skull vertices and surface, lip contact pairs, accessory rivets, tissue thickness, lid
+  contact vertices).
 
 Versions: 2 adds the rig's anatomy (``Rig.anatomy``: creases, skull, lip contact, accessories,
-tissue thickness). Version-1 files still load: their anatomy is derived from the rest of the rig
-by the current rules (``mimetic.rig.anatomy.derive_anatomy``), with a log line saying so.
+tissue thickness, and since the lids' contact was added, ``lids``). Version-1 files still load:
+their anatomy is derived from the rest of the rig by the current rules
+(``mimetic.rig.anatomy.derive_anatomy``), with a log line saying so; a version-2 file written before
+``lids`` existed gets its lids derived the same way.
 
 Floats are stored bit-exactly (arrays as raw float64; JSON numbers with Python's round-trip
 ``repr``), and every name and order is kept, so ``load_rig(save_rig(rig, p)) == rig``. Files are
@@ -33,6 +36,7 @@ import os
 import zipfile
 import zlib
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +47,7 @@ from mimetic import __version__
 from mimetic.atomic import atomic_write
 from mimetic.errors import RigError, RigFormatError
 from mimetic.mesh.model import Mesh, SurfacePoint
-from mimetic.rig.anatomy import Accessories, Anatomy, Crease, Skull
+from mimetic.rig.anatomy import Accessories, Anatomy, Crease, LidContact, Skull, derive_anatomy
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire, thaw_json
 from mimetic.rig.validate import validate_rig
 
@@ -202,6 +206,15 @@ def _anatomy_json(anatomy: Anatomy, put) -> dict[str, Any]:
             for name in ("vertices", "triangles", "bary", "offsets", "weights")
         },
         "thickness_rel": put("anatomy.thickness_rel", anatomy.thickness_rel),
+        "lids": [
+            {
+                "side": c.side,
+                "tucked": c.tucked,
+                "upper": put(f"anatomy.lids.{i}.upper", c.upper),
+                "lower": put(f"anatomy.lids.{i}.lower", c.lower),
+            }
+            for i, c in enumerate(anatomy.lids)
+        ],
     }
 
 
@@ -572,10 +585,20 @@ def _decode(doc: Any, arrays: Mapping[str, np.ndarray], version: int = FORMAT_VE
             f"{ARRAYS}: the skin_weights CSR arrays are inconsistent ({error}); {_RESAVE}"
         ) from None
 
+    units, scale = _get(doc, "units", "", "a string"), _get(doc, "scale", "", "a number")
+    anatomy = None
+    if version >= 2:
+        anatomy_doc = _get(doc, "anatomy", "", "an object")
+        anatomy = _decode_anatomy(anatomy_doc, A, len(bones))
+        if "lids" not in anatomy_doc:  # written before the lids' contact was stored
+            log.info("rig.json: the anatomy has no lids; they are derived by the current rules")
+            names = tuple(c.name for c in channels)
+            lids = derive_anatomy(mesh, landmarks, regions, skin_weights, scale, names).lids
+            anatomy = replace(anatomy, lids=lids)
     return Rig(
         mesh=mesh,
-        units=_get(doc, "units", "", "a string"),
-        scale=_get(doc, "scale", "", "a number"),
+        units=units,
+        scale=scale,
         landmarks=landmarks,
         regions=regions,
         muscles=tuple(muscles),
@@ -584,9 +607,7 @@ def _decode(doc: Any, arrays: Mapping[str, np.ndarray], version: int = FORMAT_VE
         skin_weights=skin_weights,
         channels=tuple(channels),
         metadata=_get(doc, "metadata", "", "an object"),
-        anatomy=None
-        if version < 2
-        else _decode_anatomy(_get(doc, "anatomy", "", "an object"), A, len(bones)),
+        anatomy=anatomy,
     )
 
 
@@ -627,4 +648,20 @@ def _decode_anatomy(doc: dict, A: _Arrays, n_bones: int) -> Anatomy:
             A.get(acc_doc, "weights", "anatomy.accessories", np.float64, (a, n_bones)),
         ),
         thickness_rel=A.get(doc, "thickness_rel", "anatomy", np.float64, (None,)),
+        lids=tuple(_decode_lid(c, i, A) for i, c in enumerate(_get(doc, "lids", "anatomy", "a list")))
+        if "lids" in doc
+        else (),
+    )
+
+
+def _decode_lid(doc: Any, i: int, A: _Arrays) -> LidContact:
+    """One ``LidContact`` from rig.json's ``anatomy.lids[i]``."""
+    where = f"anatomy.lids[{i}]"
+    if not isinstance(doc, dict):
+        raise RigFormatError(f"rig.json: {where} should be an object; got a {_json_type(doc)}")
+    return LidContact(
+        side=_get(doc, "side", where, "a string"),
+        upper=A.get(doc, "upper", where, np.int64, (None,)),
+        lower=A.get(doc, "lower", where, np.int64, (None,)),
+        tucked=_get(doc, "tucked", where, "a boolean"),
     )

@@ -795,6 +795,14 @@ def anatomy_differences(a: Anatomy, b: Anatomy, array, value, out: list[str]) ->
     for name in ("vertices", "triangles", "bary", "offsets", "weights"):
         array(f"anatomy.accessories.{name}", getattr(a.accessories, name), getattr(b.accessories, name))
     array("anatomy.thickness_rel", a.thickness_rel, b.thickness_rel)
+    if len(a.lids) != len(b.lids):
+        out.append(f"anatomy.lids: {len(a.lids)} vs {len(b.lids)} items")
+    else:
+        for i, (x, y) in enumerate(zip(a.lids, b.lids, strict=True)):
+            value(f"anatomy.lids[{i}].side", x.side, y.side)
+            value(f"anatomy.lids[{i}].tucked", x.tucked, y.tucked)
+            array(f"anatomy.lids[{i}].upper", x.upper, y.upper)
+            array(f"anatomy.lids[{i}].lower", x.lower, y.lower)
 
 
 def rigs_equal(a: Rig, b: Rig) -> bool:

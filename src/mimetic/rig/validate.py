@@ -146,7 +146,8 @@ def validate_rig(rig: Rig) -> None:
 
 
 def _check_anatomy(rig: Rig) -> None:
-    """The anatomy's indices point at the rig's vertices, its arrays have the rig's sizes."""
+    """The anatomy's indices point at the rig's vertices, its arrays have the rig's sizes, each lid
+    contact names an eye."""
     anatomy, n = rig.anatomy, rig.n_vertices
     fix = "re-derive it: dataclasses.replace(rig, anatomy=None)"
     for i, crease in enumerate(anatomy.creases):
@@ -180,6 +181,12 @@ def _check_anatomy(rig: Rig) -> None:
             raise RigError(f"anatomy.accessories.{name} must have shape {shape}; {fix}")
     if anatomy.thickness_rel.shape != (n,) or not np.isfinite(anatomy.thickness_rel).all():
         raise RigError(f"anatomy.thickness_rel must be finite with shape ({n},); {fix}")
+    for i, contact in enumerate(anatomy.lids):
+        where = f"anatomy.lids[{i}]"
+        if contact.side not in ("L", "R"):
+            raise RigError(f"{where}.side must be 'L' or 'R'; got {contact.side!r}; {fix}")
+        _check_indices(contact.upper, n, f"{where}.upper", "vertices")
+        _check_indices(contact.lower, n, f"{where}.lower", "vertices")
 
 
 def _names(names: Iterable[str], limit: int = 6) -> str:

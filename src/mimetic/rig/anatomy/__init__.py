@@ -7,6 +7,8 @@
   cross;
 * ``accessories``: small separate pieces riding the skin (eyelashes, brow cards, tear lines), each
   vertex riveted to the skin under its root;
+* ``lids``: where each eye's upper lid meets its lower lid (the margins' contact, kept by the
+  engines so lids close but never cross), and the closing weights that bring them together;
 * ``thickness``: the soft-tissue thickness under every skin vertex (thin on the lids and over the
   nose, thick on the cheeks), which the physically based engines lay their tissue layers on.
 
@@ -21,6 +23,7 @@ fractions of the head height (``Rig.scale``), named ``_rel``.
 from mimetic.rig.anatomy.accessories import Accessories, find_accessories
 from mimetic.rig.anatomy.anatomy import Anatomy, derive_anatomy
 from mimetic.rig.anatomy.creases import Crease, find_creases
+from mimetic.rig.anatomy.lids import LidContact, closing_weights, find_lid_contacts
 from mimetic.rig.anatomy.lips import lip_contact
 from mimetic.rig.anatomy.skull import Skull, forehead_skull
 from mimetic.rig.anatomy.tissue import tissue_thickness
@@ -29,10 +32,13 @@ __all__ = [
     "Accessories",
     "Anatomy",
     "Crease",
+    "LidContact",
     "Skull",
+    "closing_weights",
     "derive_anatomy",
     "find_accessories",
     "find_creases",
+    "find_lid_contacts",
     "forehead_skull",
     "lip_contact",
     "tissue_thickness",

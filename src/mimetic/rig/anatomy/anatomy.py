@@ -16,6 +16,7 @@ from mimetic.mesh.model import Mesh, SurfacePoint
 from mimetic.mesh.weld import find_weld
 from mimetic.rig.anatomy.accessories import Accessories, find_accessories
 from mimetic.rig.anatomy.creases import Crease, find_creases
+from mimetic.rig.anatomy.lids import LidContact, find_lid_contacts
 from mimetic.rig.anatomy.lips import lip_contact
 from mimetic.rig.anatomy.skull import Skull, forehead_skull
 from mimetic.rig.anatomy.tissue import tissue_thickness
@@ -37,6 +38,9 @@ class Anatomy:
     accessories : Accessories
     thickness_rel : (n,) float64
         Soft-tissue thickness under each vertex, × the head height; 0 off the skin.
+    lids : tuple of LidContact
+        Where each eye's upper lid meets its lower lid (``mimetic.rig.anatomy.lids``); empty for a
+        mesh without lids.
     """
 
     creases: tuple[Crease, ...]
@@ -44,9 +48,11 @@ class Anatomy:
     lip_contact: np.ndarray
     accessories: Accessories
     thickness_rel: np.ndarray
+    lids: tuple[LidContact, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "creases", tuple(self.creases))
+        object.__setattr__(self, "lids", tuple(self.lids))
         for name, dtype in (("lip_contact", np.int64), ("thickness_rel", np.float64)):
             array = np.array(getattr(self, name), dtype=dtype, copy=True)
             array.setflags(write=False)
@@ -82,12 +88,18 @@ def _anatomy(
 
     normals = vertex_normals(v, f)
     crease_skin = mesh.part_vertices("skin") if "skin" in mesh.parts else skin
+    corners = {
+        side: np.stack([landmark(f"eye_inner_corner_{side}"), landmark(f"eye_outer_corner_{side}")])
+        for side in ("L", "R")
+        if f"eye_inner_corner_{side}" in landmarks and f"eye_outer_corner_{side}" in landmarks
+    }
     return Anatomy(
         creases=find_creases(v, normals, crease_skin, landmark, set(landmarks), channel_names, scale),
         skull=forehead_skull(v, regions, scale),
         lip_contact=lip_contact(v, regions, scale),
         accessories=find_accessories(mesh, scale, skin_weights),
         thickness_rel=tissue_thickness(v, skin_faces, skin, regions, scale),
+        lids=find_lid_contacts(v, f, mesh.parts, regions, corners),
     )
 
 
@@ -141,10 +153,15 @@ def derive_anatomy(
     accessories = Accessories(
         acc_ids, weld.first[acc.triangles[rows_a]], acc.bary[rows_a], acc.offsets[rows_a], acc.weights[rows_a]
     )
+    lids = tuple(
+        replace(contact, upper=copies(contact.upper)[0], lower=weld.first[contact.lower])
+        for contact in inner.lids
+    )
     return Anatomy(
         creases=tuple(creases),
         skull=Skull(skull_ids, inner.skull.surface[rows]),
         lip_contact=np.array(pairs, dtype=np.int64).reshape(-1, 2),
         accessories=accessories,
         thickness_rel=inner.thickness_rel[weld.index],
+        lids=lids,
     )

@@ -1,0 +1,519 @@
+"""The lids: where the upper lid meets the lower one, and the closing that brings it there.
+
+Real lids close along a smooth line: the upper lid does most of the closing and comes down onto
+the lower lid's margin, slightly below the eye's equator; the margins press together but never
+pass through each other. A rig's lid bones turn each lid about the eye's centre. What makes them
+close exactly is computed here, per rig, from the rig's own margins (a closing designed on the
+reference head's ring topology and transferred to a scan lands short of, or past, the scan's
+lids):
+
+* **Rims** (``lid_rims``). In the eye frame (``eye_frame``: origin at the inner corner, ``u``
+  toward the outer corner, ``w`` the gaze, ``v`` up), the rim of a lid is where its surface, seen
+  along the gaze, ends or turns away: a vertex on a boundary edge (an eye hole), or shared by a
+  face turned toward the viewer and one turned away (where the lid folds into an eye socket).
+  Rim vertices of the eyelid regions on the skin (the largest piece of mesh the regions reach:
+  lashes are separate pieces), in front of the eye's centre and between ``SPAN`` of the corner
+  chord, are split into upper (``v > 0``) and lower by the corner chord, not by region (a transfer
+  blurs the regions), and into two layers: the *visible* margins, and a conjunctiva skirt *tucked*
+  inside the eyeball (nearer its centre than ``TUCKED_REL`` of its radius), as the generated
+  heads have. The lower rim's highest vertex per column (columns as wide as the rim's edges run
+  along ``u``) is the lower *margin*; the upper rim's lowest vertex per column the upper margin.
+* **Contact** (``find_lid_contacts``, ``Rig.anatomy.lids``): per eye and layer, every upper rim
+  vertex is a contact vertex and the lower margin the polyline it meets. The engines keep each
+  contact vertex on or above that polyline, in the eye frame at the vertex's own ``u``
+  (``mimetic.engines.common.Chain``): the upper lid yields, the lower stays. On a rig without
+  eyeballs as separate parts, the eye is the sphere through the lid regions.
+* **Closing weights** (``closing_weights``): the upper-lid bone weight of each column of the
+  visible upper margin is the one whose skinning (as the engines skin, eyeball sculptor included)
+  at the closing angle (the ``eyelid_upper`` channel's maximum) brings it onto the lower margin;
+  those weights are smoothed along the margin (a smoothing spline in ``u``), and every other
+  upper-lid vertex keeps its share of its column's margin weight. A partial closure (a wink) is
+  then a smooth curve, and a skinned export without the contact closes too.
+
+Lengths are in rig units; ``_rel`` values are fractions of the head height.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.interpolate import make_smoothing_spline
+from scipy.sparse.csgraph import connected_components as graph_components
+
+from mimetic.head.parts import eyeball_profile
+from mimetic.mesh.geometry import boundary_edges, connected_components, edges_unique, face_normals
+
+__all__ = [
+    "LID_CLEARANCE_REL",
+    "LID_CONTACT_GAP_REL",
+    "LidContact",
+    "LidRims",
+    "closing_weights",
+    "eye_frame",
+    "eye_sphere",
+    "find_lid_contacts",
+    "lid_rims",
+    "sculpt_lids",
+]
+
+LID_CLEARANCE_REL = 0.0002
+"""Lids stay this far outside the eyeball, × the head height (0.005 cm on a 23 cm head)."""
+LID_CONTACT_GAP_REL = 0.0005
+"""Closed lids keep this far apart at the contact, × the head height (0.1 mm: they touch, and a margin
+sampled more coarsely than the contact's still never shows them crossed)."""
+TUCKED_REL = 0.9
+"""Rim vertices nearer the eye's centre than this × its radius are a skirt tucked inside the eyeball."""
+SPAN = (0.05, 0.95)
+"""The part of the corner chord (fractions from the inner corner) whose rims are contacts."""
+MIN_CHAIN = 0.25
+"""A piece of rim is a margin when its envelope spans this much of the corner chord."""
+OUTLIER_REL = 0.1
+"""A margin point this far (× the lid width) beyond the line through its neighbours is not margin."""
+MIN_MARGIN = 3
+"""A layer whose lower margin has fewer columns than this has no contact."""
+SMOOTHING = 1e-5
+"""Penalty of the smoothing spline of the closing weights along the margin (``u`` in lid widths)."""
+BISECTIONS = 40
+
+
+@dataclass(frozen=True, eq=False)
+class LidContact:
+    """Where one layer of one eye's upper lid meets its lower lid (see the module docstring).
+
+    Attributes
+    ----------
+    side : "L" | "R"
+    upper : (k,) int64
+        The upper lid's rim vertices (the contact vertices), by increasing rest ``u``.
+    lower : (j,) int64
+        The lower margin (the lower rim's highest vertex per column), inner to outer corner.
+    tucked : bool
+        A conjunctiva skirt inside the eyeball (hidden) rather than the visible margins. Only the
+        visible layer opens the upper lid's columns; a tucked contact only keeps its own vertices
+        from crossing.
+    """
+
+    side: str
+    upper: np.ndarray
+    lower: np.ndarray
+    tucked: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("upper", "lower"):
+            array = np.array(getattr(self, name), dtype=np.int64, copy=True).reshape(-1)
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+        object.__setattr__(self, "tucked", bool(self.tucked))
+
+
+@dataclass(frozen=True)
+class LidRims:
+    """The rims of one eye's lids at rest (``lid_rims``).
+
+    Attributes
+    ----------
+    origin : (3,) float64
+        The inner eye corner.
+    axes : (3, 3) float64
+        Rows ``u``, ``v``, ``w`` of the eye frame (``eye_frame``).
+    width : float
+        Distance between the corners.
+    upper, lower : tuple of (k,) int64
+        Per layer (visible, tucked): the upper rim vertices by increasing ``u``, and the lower margin
+        (highest lower rim vertex per column) inner to outer.
+    upper_margin : tuple of (k,) int64
+        Per layer: the lowest upper rim vertex per column, inner to outer.
+    """
+
+    origin: np.ndarray
+    axes: np.ndarray
+    width: float
+    upper: tuple[np.ndarray, np.ndarray]
+    lower: tuple[np.ndarray, np.ndarray]
+    upper_margin: tuple[np.ndarray, np.ndarray]
+
+    def uvw(self, points: np.ndarray) -> np.ndarray:
+        """``points`` (k, 3) in the eye frame: (u, v, w), rig units."""
+        return (points - self.origin) @ self.axes.T
+
+
+def eye_frame(inner: np.ndarray, outer: np.ndarray, gaze: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The eye frame: origin (3,) at the inner corner, axes (3, 3) with rows ``u`` (inner → outer
+    corner), ``v`` (up) and ``w`` (the gaze made orthogonal to ``u``; +Z when the gaze lies along
+    ``u``), and the corner distance. ``mimetic.quality`` measures lid gaps in the same frame."""
+    inner, outer = np.asarray(inner, dtype=np.float64), np.asarray(outer, dtype=np.float64)
+    width = float(np.linalg.norm(outer - inner))
+    u = (outer - inner) / width
+    gaze = np.asarray(gaze, dtype=np.float64)
+    if np.linalg.norm(gaze - gaze.dot(u) * u) < 1e-9 * max(width, 1e-300):
+        gaze = np.array([0.0, 0.0, 1.0])
+    w = gaze - gaze.dot(u) * u
+    w /= np.linalg.norm(w)
+    v = np.cross(w, u)
+    if v[1] < 0:
+        v = -v
+    return inner, np.stack([u, v, w]), width
+
+
+def eye_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares sphere through ``points`` (k, 3): centre (3,) and radius."""
+    a = np.column_stack([2.0 * points, np.ones(len(points))])
+    b = np.sum(points**2, axis=1)
+    x = np.linalg.lstsq(a, b, rcond=None)[0]
+    return x[:3], float(np.sqrt(max(x[3] + x[:3] @ x[:3], 0.0)))
+
+
+def _gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.ndarray:
+    """Vertices (n,) bool on a boundary edge or shared by a face facing along ``gaze`` and one not."""
+    n = len(vertices)
+    normals = face_normals(vertices, faces, unit=False)
+    facing = normals @ gaze
+    has_area = np.linalg.norm(normals, axis=1) > 0
+    front = np.zeros(n, dtype=bool)
+    back = np.zeros(n, dtype=bool)
+    front[faces[has_area & (facing > 0)].ravel()] = True
+    back[faces[has_area & (facing <= 0)].ravel()] = True
+    rim = front & back
+    rim[boundary_edges(faces).ravel()] = True
+    return rim
+
+
+def _envelope(ids: np.ndarray, edges: np.ndarray, uvw: np.ndarray, *, lowest: bool) -> np.ndarray:
+    """The vertices of ``ids`` on the lower (``lowest``) or upper envelope, seen along the gaze, of the
+    polylines their mesh edges draw in the eye's (u, v) plane, ordered by ``u``.
+
+    A vertex is dropped when an edge between two of ``ids`` passes under it (over it for the upper
+    envelope) at its ``u``: a lid crease folds above the margin, and the margin's own edges pass
+    under it; a second row of the margin lies above the first.
+    """
+    sign = 1.0 if lowest else -1.0
+    inner = edges[np.isin(edges, ids).all(axis=1)]
+    u, v = uvw[:, 0], sign * uvw[:, 1]
+    a, b = inner[:, 0], inner[:, 1]
+    lo, hi = np.minimum(u[a], u[b]), np.maximum(u[a], u[b])
+    tol = 1e-9 * max(float(np.ptp(u[ids])) if len(ids) else 1.0, 1e-300)
+    between = (u[ids, None] > lo[None] + tol) & (u[ids, None] < hi[None] - tol)  # (k, e)
+    t = (u[ids, None] - u[a][None]) / np.where(hi - lo > 0, u[b] - u[a], 1.0)[None]
+    below = (1 - t) * v[a][None] + t * v[b][None] < v[ids, None] - tol
+    keep = ids[~(between & below).any(axis=1)]
+    return keep[np.argsort(uvw[keep, 0], kind="stable")]
+
+
+def _chain(
+    envelope: np.ndarray, ids: np.ndarray, edges: np.ndarray, uvw: np.ndarray, width: float
+) -> np.ndarray:
+    """The ``envelope`` vertices on pieces of the rim ``ids`` (joined by mesh edges) whose envelope
+    spans at least ``MIN_CHAIN`` of the lid ``width`` along ``u``: the margin runs from corner to
+    corner, a fold beside a corner does not."""
+    if len(envelope) == 0:
+        return envelope
+    inner = edges[np.isin(edges, ids).all(axis=1)]
+    index = np.full(int(max(ids.max(), inner.max(initial=0))) + 1, -1)
+    index[ids] = np.arange(len(ids))
+    graph = sp.coo_matrix(
+        (np.ones(len(inner)), (index[inner[:, 0]], index[inner[:, 1]])), shape=(len(ids),) * 2
+    )
+    _, label = graph_components(graph, directed=False)
+    piece = label[index[envelope]]
+    u = uvw[envelope, 0]
+    keep = np.zeros(len(envelope), dtype=bool)
+    for p in np.unique(piece):
+        mine = piece == p
+        if np.ptp(u[mine]) >= MIN_CHAIN * width:
+            keep |= mine
+    return envelope[keep]
+
+
+def _smooth_run(margin: np.ndarray, uvw: np.ndarray, width: float, *, lowest: bool) -> np.ndarray:
+    """``margin`` (by ``u``) without the points farther from the opening than the line through their
+    neighbours (the ends: through the next two) by ``OUTLIER_REL`` of the lid ``width`` or more: a
+    fold beyond a corner that joins the margin's piece of rim."""
+    sign = 1.0 if lowest else -1.0  # away from the opening is up for the upper lid
+    while len(margin) > 3:
+        u, v = uvw[margin, 0], sign * uvw[margin, 1]
+        a = np.concatenate([[1], np.arange(len(u) - 2), [len(u) - 3]])
+        b = np.concatenate([[2], np.arange(2, len(u)), [len(u) - 2]])
+        span = u[b] - u[a]
+        t = (u - u[a]) / np.where(np.abs(span) > 0, span, 1.0)
+        excess = v - ((1 - t) * v[a] + t * v[b])
+        worst = int(np.argmax(excess))
+        if excess[worst] <= OUTLIER_REL * width:
+            break
+        margin = np.delete(margin, worst)
+    return margin
+
+
+def _overlap(margin: np.ndarray, other: np.ndarray, uvw: np.ndarray) -> np.ndarray:
+    """``margin`` (by ``u``) within the ``u`` range of ``other``, and its nearest vertex beyond either end."""
+    if len(margin) == 0 or len(other) == 0:
+        return margin[:0]
+    u = uvw[margin, 0]
+    first = max(int(np.searchsorted(u, uvw[other, 0].min(), side="right")) - 1, 0)
+    last = int(np.searchsorted(u, uvw[other, 0].max(), side="left")) + 1
+    return margin[first:last]
+
+
+def lid_rims(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    regions: Mapping[str, np.ndarray],
+    side: str,
+    *,
+    corners: np.ndarray,
+    centre: np.ndarray,
+    radius: float,
+    gaze: np.ndarray,
+) -> LidRims | None:
+    """The rims of eye ``side``'s lids on a rest mesh (see the module docstring).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 3) int64
+    regions : Mapping[str, (k,) int64]
+        ``eyelid_upper_<side>`` and ``eyelid_lower_<side>``.
+    side : "L" | "R"
+    corners : (2, 3) float64
+        The inner and outer eye corners.
+    centre, radius : (3,) float64, float
+        The eyeball's centre and radius.
+    gaze : (3,) float64
+        The eye's gaze direction.
+
+    Returns
+    -------
+    LidRims, or None when a lid region is missing or has no rim.
+    """
+    names = (f"eyelid_upper_{side}", f"eyelid_lower_{side}")
+    if any(len(regions.get(name, ())) == 0 for name in names):
+        return None
+    origin, axes, width = eye_frame(corners[0], corners[1], gaze)
+    _, labels = connected_components(faces, len(vertices))
+    lids = np.unique(np.concatenate([np.asarray(regions[name], dtype=np.int64) for name in names]))
+    sizes = np.bincount(labels)
+    reached = np.unique(labels[lids])
+    lids = lids[labels[lids] == reached[np.argmax(sizes[reached])]]
+    uvw = (vertices - origin) @ axes.T
+    in_front = (vertices[lids] - centre) @ axes[2] > 0
+    lo, hi = SPAN[0] * width, SPAN[1] * width
+    inside = (uvw[lids, 0] > lo) & (uvw[lids, 0] < hi)
+    lids = lids[in_front & inside]
+    is_tucked = np.zeros(len(vertices), dtype=bool)
+    is_tucked[lids] = np.linalg.norm(vertices[lids] - centre, axis=1) < TUCKED_REL * radius
+    # the rims: where the lid ends or turns away along the gaze, or (visible layer) meets the skirt
+    edges = edges_unique(faces)
+    next_to_tucked = np.zeros(len(vertices), dtype=bool)
+    mixed = is_tucked[edges[:, 0]] != is_tucked[edges[:, 1]]
+    next_to_tucked[edges[mixed].ravel()] = True
+    rim = _gaze_rim(vertices, faces, axes[2])
+    upper, lower, margin = [], [], []
+    for tucked in (False, True):
+        layer = lids[is_tucked[lids] == tucked]
+        ids = layer[rim[layer] | (next_to_tucked[layer] & (not tucked))]
+        up, low = ids[uvw[ids, 1] > 0], ids[uvw[ids, 1] <= 0]
+        upper.append(up[np.argsort(uvw[up, 0], kind="stable")])
+        top = _chain(_envelope(up, edges, uvw, lowest=True), up, edges, uvw, width)
+        bottom = _chain(_envelope(low, edges, uvw, lowest=False), low, edges, uvw, width)
+        top, bottom = _smooth_run(top, uvw, width, lowest=True), _smooth_run(bottom, uvw, width, lowest=False)
+        margin.append(_overlap(top, bottom, uvw))
+        lower.append(_overlap(bottom, top, uvw))
+    return LidRims(origin, axes, width, tuple(upper), tuple(lower), tuple(margin))
+
+
+def _eye(
+    vertices: np.ndarray, faces: np.ndarray, parts: Mapping[str, np.ndarray], regions, side: str
+) -> tuple[np.ndarray, float] | None:
+    """The eyeball's sphere: through the ``eye_<side>`` part's vertices, else through the lids'."""
+    part = parts.get(f"eye_{side}")
+    if part is not None and len(part):
+        ids = np.unique(faces[part])
+    else:
+        ids = np.unique(
+            np.concatenate(
+                [regions.get(f"eyelid_{lid}_{side}", np.zeros(0, np.int64)) for lid in ("upper", "lower")]
+            )
+        )
+    if len(ids) < 10:
+        return None
+    centre, radius = eye_sphere(vertices[ids])
+    return (centre, radius) if np.all(np.isfinite(centre)) and radius > 0 else None
+
+
+def find_lid_contacts(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    parts: Mapping[str, np.ndarray],
+    regions: Mapping[str, np.ndarray],
+    corners: Mapping[str, np.ndarray],
+) -> tuple[LidContact, ...]:
+    """Where each eye's upper lid meets its lower lid, per layer (see the module docstring).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        The rest mesh, rig units (+Y up, +Z forward: the gaze is +Z).
+    faces : (m, 3) int64
+    parts : Mapping[str, (f,) int64]
+        The mesh's parts (face indices); ``eye_L`` / ``eye_R`` give the eyeballs.
+    regions : Mapping[str, (k,) int64]
+        ``eyelid_upper_L`` … ``eyelid_lower_R``.
+    corners : Mapping[str, (2, 3) float64]
+        Per side ("L", "R"), the inner and outer eye corners; a side without corners has no contact.
+
+    Returns
+    -------
+    tuple of LidContact, left eye first, visible layer before tucked; empty for a mesh without lids.
+    """
+    out = []
+    for side in ("L", "R"):
+        if side not in corners:
+            continue
+        eye = _eye(vertices, faces, parts, regions, side)
+        if eye is None:
+            continue
+        rims = lid_rims(
+            vertices,
+            faces,
+            regions,
+            side,
+            corners=np.asarray(corners[side], dtype=np.float64),
+            centre=eye[0],
+            radius=eye[1],
+            gaze=np.array([0.0, 0.0, 1.0]),
+        )
+        if rims is None:
+            continue
+        for layer, tucked in ((0, False), (1, True)):
+            if len(rims.upper[layer]) and len(rims.lower[layer]) >= MIN_MARGIN:
+                out.append(LidContact(side, rims.upper[layer], rims.lower[layer], tucked))
+    return tuple(out)
+
+
+def sculpt_lids(
+    points: np.ndarray, centre: np.ndarray, gaze: np.ndarray, radius: float, clearance: float
+) -> np.ndarray:
+    """``points`` (k, 3) pushed radially out of the eyeball (its profile, the cornea included) to
+    ``clearance`` outside it: the engines' eyelid sculptor. ``gaze`` (3,) is a unit vector."""
+    d = points - centre
+    dist = np.linalg.norm(d, axis=1)
+    angle = np.arccos(np.clip(d @ gaze / np.maximum(dist, 1e-300), -1.0, 1.0))
+    limit = radius * eyeball_profile(angle) + clearance
+    inside = dist < limit
+    out = points.copy()
+    out[inside] = centre + d[inside] * (limit[inside] / np.maximum(dist[inside], 1e-300))[:, None]
+    return out
+
+
+def _rotation_x(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def closing_weights(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    weights: np.ndarray,
+    regions: Mapping[str, np.ndarray],
+    side: str,
+    *,
+    lid: int,
+    head: int,
+    pivot: np.ndarray,
+    corners: np.ndarray,
+    centre: np.ndarray,
+    radius: float,
+    gaze: np.ndarray,
+    closed_rad: float,
+    clearance: float,
+) -> np.ndarray:
+    """Skin weights whose upper-lid column closes eye ``side`` onto its lower margin at ``closed_rad``.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        The rest mesh, rig units.
+    faces : (m, 3) int64
+    weights : (n, b) float64
+        The rig's skin weights (rows sum to 1); not changed.
+    regions : Mapping[str, (k,) int64]
+        ``eyelid_upper_<side>`` and ``eyelid_lower_<side>``.
+    side : "L" | "R"
+    lid, head : int
+        Columns of the upper-lid bone and of the head bone (which takes what the lid gives back).
+    pivot : (3,) float64
+        The upper-lid bone's head: it turns about +X through it.
+    corners : (2, 3) float64
+        The inner and outer eye corners.
+    centre, radius, gaze : (3,) float64, float, (3,) float64
+        The eyeball (the eye bone's head, length and direction).
+    closed_rad : float
+        The upper-lid rotation that closes the eye (the ``eyelid_upper`` channel's maximum).
+    clearance : float
+        The sculptor's clearance outside the eyeball, rig units.
+
+    Returns
+    -------
+    (n, b) float64, a new array: the upper-lid column rescaled per column of the lid (the head
+    column takes the difference); ``weights`` unchanged when the lids have no visible rim.
+    """
+    out = np.array(weights, dtype=np.float64, copy=True)
+    gaze = np.asarray(gaze, dtype=np.float64) / np.linalg.norm(gaze)
+    rims = lid_rims(vertices, faces, regions, side, corners=corners, centre=centre, radius=radius, gaze=gaze)
+    if rims is None or len(rims.upper_margin[0]) < MIN_MARGIN or len(rims.lower[0]) < MIN_MARGIN:
+        return out
+    margin, lower = rims.upper_margin[0], rims.lower[0]
+    low = rims.uvw(vertices[lower])  # (j, 3)
+    p = vertices[margin]  # (k, 3)
+    turn = _rotation_x(closed_rad)
+    swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
+    budget = out[margin, lid] + out[margin, head]
+
+    def shortfall(w: np.ndarray) -> np.ndarray:
+        """How far above the lower margin (> 0) each margin vertex lands with lid weight ``w``."""
+        posed = sculpt_lids(p + w[:, None] * swing, centre, gaze, radius, clearance)
+        uvw = rims.uvw(posed)
+        return uvw[:, 1] - np.interp(uvw[:, 0], low[:, 0], low[:, 1])
+
+    lo, hi = np.zeros(len(p)), budget.copy()
+    for _ in range(BISECTIONS):  # the lid comes down as its weight grows
+        mid = 0.5 * (lo + hi)
+        above = shortfall(mid) > 0
+        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+    needed = 0.5 * (lo + hi)  # (k,)
+    # every upper-lid vertex keeps its share of its column's margin weight (1 on the tarsal plate,
+    # fading toward the brow); the margin's weight becomes the smoothed closing weight
+    u = rims.uvw(p)[:, 0] / rims.width
+    closing = _smooth(u, needed)
+    ids = np.flatnonzero(out[:, lid] > 0)
+    at = rims.uvw(vertices[ids])[:, 0] / rims.width
+    column = np.interp(at, u, out[margin, lid])
+    share = np.clip(out[ids, lid] / np.maximum(column, 1e-9), 0.0, 1.0)
+    want = np.clip(closing(np.clip(at, u[0], u[-1])), 0.0, None)  # past the ends: the end's
+    total = out[ids, lid] + out[ids, head]  # a vertex the head bone does not weight only gives
+    new = np.minimum(share * want, total)
+    given = out[ids, lid] - new
+    out[ids, lid], out[ids, head] = new, total - new
+    # where the head bone did not weight a vertex its other bones share what the lid gives, so no
+    # vertex gains an influence
+    others = out[ids].copy()
+    others[:, [lid, head]] = 0.0
+    room = others.sum(axis=1)
+    spread = (weights[ids, head] == 0) & (room > 0)
+    rows = ids[spread]
+    out[rows, head] = 0.0
+    out[rows] += others[spread] * (given[spread] / room[spread])[:, None]
+    return out
+
+
+def _smooth(u: np.ndarray, values: np.ndarray):
+    """A smoothing spline (callable) of ``values`` (k,) over distinct increasing-ish ``u`` (k,)."""
+    order = np.argsort(u, kind="stable")
+    x, y = u[order], values[order]
+    keep = np.concatenate([[True], np.diff(x) > 1e-9])
+    x, y = x[keep], y[keep]
+    if len(x) < 5:
+        return lambda t: np.interp(t, x, y)
+    return make_smoothing_spline(x, y, lam=SMOOTHING)
