@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import subprocess
+import warnings
 import wave
 
 import imageio_ffmpeg
@@ -11,6 +13,7 @@ import pytest
 
 from mimetic.animate.clip import from_expressions
 from mimetic.engines import bake, evaluate_basis, make_engine
+from mimetic.errors import MimeticWarning
 from mimetic.rig.activations import Clip
 from mimetic.testing import small_rig
 from mimetic.view.video import VideoError, render_clip, write_mp4
@@ -32,6 +35,12 @@ def _tone(path, seconds: float, rate: int = 16_000) -> None:
         out.setsampwidth(2)
         out.setframerate(rate)
         out.writeframes(samples.tobytes())
+
+
+def _frames(path) -> list[np.ndarray]:
+    reader = imageio_ffmpeg.read_frames(str(path))
+    w, h = next(reader)["size"]
+    return [np.frombuffer(f, np.uint8).reshape(h, w, 3) for f in reader]
 
 
 @pytest.fixture(scope="module")
@@ -68,14 +77,34 @@ def test_sizes_are_rounded_to_macro_blocks_and_checked(clip: Clip, tmp_path) -> 
         render_clip(small_rig(), clip, tmp_path / "x.mp4", size=32)
 
 
-def test_audio_is_muxed_and_the_shorter_stream_wins(clip: Clip, tmp_path) -> None:
+def test_audio_shorter_than_the_clip_is_muxed_and_the_video_keeps_every_frame(clip: Clip, tmp_path) -> None:
     tone = tmp_path / "tone.wav"
     _tone(tone, 0.6)
-    out = render_clip(small_rig(), clip, tmp_path / "talk.mp4", size=64, audio=tone)
-    info = _streams(out)
-    assert "Audio: aac" in info
-    _, seconds = imageio_ffmpeg.count_frames_and_secs(str(out))
-    assert seconds < 0.8  # the 1.24 s video stops with the 0.6 s audio
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MimeticWarning)  # nothing to warn about
+        out = render_clip(small_rig(), clip, tmp_path / "talk.mp4", size=64, audio=tone)
+    assert "Audio: aac" in _streams(out)
+    count, _ = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert count == len(clip.values)  # the animation is not cut to the sound
+
+
+def test_audio_longer_than_the_clip_holds_the_last_frame_and_says_so(clip: Clip, tmp_path) -> None:
+    tone = tmp_path / "tone.wav"
+    _tone(tone, 2.0)
+    with pytest.warns(MimeticWarning, match=r"audio lasts 2\.00 s .* last frame is held"):
+        out = render_clip(small_rig(), clip, tmp_path / "talk.mp4", size=64, audio=tone)
+    count, _ = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert count == math.ceil(2.0 * clip.fps)  # the sound is not cut
+    frames = _frames(out)
+    assert np.abs(frames[-1].astype(int) - frames[len(clip.values) - 1]).mean() < 1.0  # the held frame
+
+
+def test_audio_that_is_not_sound_is_refused_and_nothing_is_written(clip: Clip, tmp_path) -> None:
+    fake = tmp_path / "notes.wav"
+    fake.write_text("not a sound file")
+    with pytest.raises(VideoError, match="no audio stream"):
+        render_clip(small_rig(), clip, tmp_path / "talk.mp4", size=64, audio=fake)
+    assert not (tmp_path / "talk.mp4").exists()
 
 
 def test_missing_audio_and_bad_frames_leave_a_good_file(tmp_path) -> None:

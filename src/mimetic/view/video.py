@@ -8,10 +8,13 @@ an engine, and rendered by the shared offscreen renderer. The file is written th
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import subprocess
 import tempfile
-from collections.abc import Callable, Iterable
+import warnings
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -19,10 +22,11 @@ import numpy as np
 from mimetic.atomic import atomic_path
 from mimetic.engines import make_engine
 from mimetic.engines.basis import Basis, evaluate_basis
-from mimetic.errors import MimeticError, MissingExtraError
+from mimetic.errors import MimeticError, MimeticWarning, MissingExtraError
 from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import Clip
 from mimetic.rig.model import Rig
+from mimetic.view.look import rig_look
 from mimetic.view.sheets import face_camera
 
 MIN_SIZE, MAX_SIZE = 64, 2160
@@ -54,8 +58,9 @@ def write_mp4(
 ) -> Path:
     """Encode RGB frames (h, w, 3) uint8 (``size`` = (w, h), multiples of 16) to an H.264 MP4.
 
-    With ``audio`` (a WAV or any file ffmpeg reads), its track is muxed in as AAC in a second pass
-    and the video stops at the shorter of the two.
+    With ``audio`` (a WAV or any file ffmpeg reads), its track is muxed in as AAC in a second pass.
+    Nothing is cut: audio longer than the frames holds the last frame until the sound ends (with a
+    ``MimeticWarning`` saying by how much), shorter audio leaves the rest of the video silent.
     """
     path = Path(path)
     if audio is not None and not Path(audio).is_file():
@@ -68,11 +73,40 @@ def write_mp4(
         if audio is None:
             _encode(frames, tmp, fps, (width, height))
         else:
+            sound_s = _duration_s(Path(audio))
             with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.stem}.") as scratch:
                 silent = Path(scratch) / "video.mp4"
-                _encode(frames, silent, fps, (width, height))
+                _encode(_held(frames, fps, sound_s), silent, fps, (width, height))
                 _mux(silent, Path(audio), tmp)
     return path
+
+
+def _duration_s(audio: Path) -> float:
+    """Length of the first audio stream of ``audio`` in seconds, as ffmpeg reads it."""
+    run = subprocess.run([_ffmpeg().get_ffmpeg_exe(), "-hide_banner", "-i", str(audio)], capture_output=True)
+    found = re.search(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)", run.stderr.decode(errors="replace"))
+    if found is None or b"Audio:" not in run.stderr:
+        raise VideoError(f"--audio {audio}: ffmpeg finds no audio stream in it (is it a sound file?)")
+    hours, minutes, seconds = found.groups()
+    return 3600 * int(hours) + 60 * int(minutes) + float(seconds)
+
+
+def _held(frames: Iterable[np.ndarray], fps: float, seconds: float) -> Iterator[np.ndarray]:
+    """``frames``, then the last one again until they last ``seconds`` at ``fps`` (with a warning)."""
+    count, last = 0, None
+    for frame in frames:
+        count, last = count + 1, frame
+        yield frame
+    missing = math.ceil(seconds * fps - 1e-6) - count
+    if missing > 0 and last is not None:
+        warnings.warn(
+            f"the audio lasts {seconds:.2f} s and the clip {count / fps:.2f} s: the last frame is held "
+            f"for {missing / fps:.2f} s so the sound is not cut (lengthen the clip to animate it)",
+            MimeticWarning,
+            stacklevel=4,
+        )
+        for _ in range(missing):
+            yield last
 
 
 def _encode(frames: Iterable[np.ndarray], out: Path, fps: float, size: tuple[int, int]) -> None:
@@ -107,10 +141,10 @@ def _encode(frames: Iterable[np.ndarray], out: Path, fps: float, size: tuple[int
 
 
 def _mux(video: Path, audio: Path, out: Path) -> None:
-    """Write ``video`` with ``audio`` as an AAC track to ``out``, cut to the shorter of the two."""
+    """Write ``video`` with ``audio`` as an AAC track to ``out`` (both whole)."""
     command = [
         _ffmpeg().get_ffmpeg_exe(), "-loglevel", "error", "-y", "-i", str(video), "-i", str(audio),
-        "-map", "0:v:0", "-map", "1:a:0", "-c:v", "copy", "-c:a", "aac", "-shortest",
+        "-map", "0:v:0", "-map", "1:a:0", "-c:v", "copy", "-c:a", "aac",
         "-movflags", "+faststart", str(out),
     ]  # fmt: skip
     run = subprocess.run(command, capture_output=True)
@@ -143,6 +177,7 @@ def render_clip(
     values = clip.select(rig.channel_names, {c.name: c.default for c in rig.channels}).values  # (f, c)
     renderer = renderer or default_renderer()
     camera = face_camera(rig, yaw_deg=yaw_deg)
+    look = rig_look(rig)  # eyes, lashes and materials as the contact sheets draw them
     deform = None if basis is not None else make_engine(rig, engine).deform
 
     def frames():
@@ -151,7 +186,7 @@ def render_clip(
                 vertices = evaluate_basis(basis, pose, dtype=np.float32)
             else:
                 vertices = deform(pose)
-            yield renderer.render(rig.mesh.with_vertices(vertices), camera, size=(size, size))
+            yield renderer.render(rig.mesh.with_vertices(vertices), camera, size=(size, size), look=look)
             if progress is not None:
                 progress(k + 1, len(values))
 
