@@ -226,6 +226,13 @@ def test_mesh_report_lines_show_errors_and_warnings(tetrahedron):
     assert lines[-1].startswith("not usable")
 
 
+def test_mesh_report_lines_label_part_sizes_as_face_counts():
+    mesh = small_head().mesh
+    (line,) = [line for line in validate_mesh(mesh).lines() if line.startswith("parts")]
+    assert line.startswith("parts (faces) ")
+    assert f"skin {len(mesh.parts['skin']):,}" in line
+
+
 def test_mesh_report_is_frozen(tetrahedron):
     report = validate_mesh(tetrahedron)
     with pytest.raises(dataclasses.FrozenInstanceError):

@@ -156,7 +156,7 @@ class MeshReport:
             out.append(f"size              {size} {self.units or '(units unknown)'}")
         out.append(f"units             {self.units or '-'} (size suggests {self.detected_units or 'none'})")
         if self.part_faces:
-            out.append("parts             " + ", ".join(f"{k} ({v:,})" for k, v in self.part_faces.items()))
+            out.append("parts (faces)     " + ", ".join(f"{k} {v:,}" for k, v in self.part_faces.items()))
         out += [f"error: {e}" for e in self.errors]
         out += [f"warning: {w}" for w in self.warnings]
         out.append("ok" if self.ok else f"not usable: {len(self.errors)} error(s)")
