@@ -30,7 +30,7 @@ from mimetic.mesh.closest import ClosestPoints, closest_points
 from mimetic.mesh.geometry import connected_components, smooth_field, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.rig.anatomy import closing_weights, find_accessories
-from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL
+from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL
 from mimetic.rig.model import Bone, Rig, Wire
 
 MAX_INFLUENCES = 4
@@ -245,6 +245,7 @@ def _close_lids(
             gaze=eye.tail - eye.head,
             closed_rad=reference.channel(channel).maximum,
             clearance=LID_CLEARANCE_REL * scale,
+            thickness=LID_THICKNESS_REL * scale,
         )
     return out
 

@@ -29,7 +29,7 @@ from mimetic.head.model import Head
 from mimetic.head.shape import smoothstep
 from mimetic.head.topology import build_topology
 from mimetic.mesh.geometry import smooth_field
-from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, closing_weights
+from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL, closing_weights
 from mimetic.rig.model import Bone
 
 LID_RIGID_U, LID_FREE_U = 0.2, 0.45  # lid ring parameter u where a lid bone's weight starts / ends fading
@@ -190,6 +190,7 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
             gaze=np.array([0.0, 0.0, 1.0]),
             closed_rad=EYELID_CLOSED_RAD,
             clearance=LID_CLEARANCE_REL * scale,
+            thickness=LID_THICKNESS_REL * scale,
         )
     W[W < 1e-6] = 0.0
     W /= W.sum(axis=1, keepdims=True)

@@ -49,11 +49,13 @@ from mimetic.mesh.geometry import boundary_edges, connected_components, edges_un
 __all__ = [
     "LID_CLEARANCE_REL",
     "LID_CONTACT_GAP_REL",
+    "LID_THICKNESS_REL",
     "LidContact",
     "LidRims",
     "closing_weights",
     "eye_frame",
     "eye_sphere",
+    "eyeball_surface",
     "find_lid_contacts",
     "lid_rims",
     "sculpt_lids",
@@ -61,7 +63,10 @@ __all__ = [
 
 LID_CLEARANCE_REL = 0.0002
 """Lids stay this far outside the eyeball, × the head height (0.005 cm on a 23 cm head)."""
-LID_CONTACT_GAP_REL = 0.0005
+LID_THICKNESS_REL = 0.01
+"""The sculptor keeps each lid vertex at least as high over the eyeball as at rest, up to this × the
+head height (2 mm): a closing lid keeps its thickness over the cornea."""
+LID_CONTACT_GAP_REL = 0.001
 """Closed lids keep this far apart at the contact, × the head height (0.1 mm: they touch, and a margin
 sampled more coarsely than the contact's still never shows them crossed)."""
 TUCKED_REL = 0.9
@@ -392,18 +397,29 @@ def find_lid_contacts(
     return tuple(out)
 
 
-def sculpt_lids(
-    points: np.ndarray, centre: np.ndarray, gaze: np.ndarray, radius: float, clearance: float
-) -> np.ndarray:
-    """``points`` (k, 3) pushed radially out of the eyeball (its profile, the cornea included) to
-    ``clearance`` outside it: the engines' eyelid sculptor. ``gaze`` (3,) is a unit vector."""
+def eyeball_surface(
+    points: np.ndarray, centre: np.ndarray, gaze: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Distances (k,) of ``points`` (k, 3) from the eye's ``centre`` and the eyeball's radius (k,) in
+    their directions (its profile, the cornea included, ``mimetic.head.parts.eyeball_profile``).
+    ``gaze`` (3,) is a unit vector."""
     d = points - centre
     dist = np.linalg.norm(d, axis=1)
     angle = np.arccos(np.clip(d @ gaze / np.maximum(dist, 1e-300), -1.0, 1.0))
-    limit = radius * eyeball_profile(angle) + clearance
+    return dist, radius * eyeball_profile(angle)
+
+
+def sculpt_lids(
+    points: np.ndarray, centre: np.ndarray, gaze: np.ndarray, radius: float, clearance: float | np.ndarray
+) -> np.ndarray:
+    """``points`` (k, 3) pushed radially out of the eyeball to ``clearance`` (a float or (k,); -inf:
+    left alone) outside it: the engines' eyelid sculptor. ``gaze`` (3,) is a unit vector."""
+    dist, surface = eyeball_surface(points, centre, gaze, radius)
+    limit = surface + clearance
     inside = dist < limit
     out = points.copy()
-    out[inside] = centre + d[inside] * (limit[inside] / np.maximum(dist[inside], 1e-300))[:, None]
+    d = points[inside] - centre
+    out[inside] = centre + d * (limit[inside] / np.maximum(dist[inside], 1e-300))[:, None]
     return out
 
 
@@ -428,6 +444,7 @@ def closing_weights(
     gaze: np.ndarray,
     closed_rad: float,
     clearance: float,
+    thickness: float,
 ) -> np.ndarray:
     """Skin weights whose upper-lid column closes eye ``side`` onto its lower margin at ``closed_rad``.
 
@@ -451,8 +468,9 @@ def closing_weights(
         The eyeball (the eye bone's head, length and direction).
     closed_rad : float
         The upper-lid rotation that closes the eye (the ``eyelid_upper`` channel's maximum).
-    clearance : float
-        The sculptor's clearance outside the eyeball, rig units.
+    clearance, thickness : float
+        The sculptor's clearance outside the eyeball and the most of its rest height over the eyeball
+        it keeps for each lid vertex, rig units (``LID_CLEARANCE_REL``, ``LID_THICKNESS_REL``).
 
     Returns
     -------
@@ -470,10 +488,14 @@ def closing_weights(
     turn = _rotation_x(closed_rad)
     swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
     budget = out[margin, lid] + out[margin, head]
+    # the sculptor keeps a lid vertex clear of the eyeball at rest at its rest height, up to thickness
+    dist, surface = eyeball_surface(p, centre, gaze, radius)
+    height = dist - surface - clearance  # < 0: inside the eyeball at rest, never sculpted
+    keep = np.where(height >= 0, clearance + np.minimum(height, thickness), -np.inf)
 
     def shortfall(w: np.ndarray) -> np.ndarray:
         """How far above the lower margin (> 0) each margin vertex lands with lid weight ``w``."""
-        posed = sculpt_lids(p + w[:, None] * swing, centre, gaze, radius, clearance)
+        posed = sculpt_lids(p + w[:, None] * swing, centre, gaze, radius, keep)
         uvw = rims.uvw(posed)
         return uvw[:, 1] - np.interp(uvw[:, 0], low[:, 0], low[:, 1])
 
