@@ -34,24 +34,43 @@ For one wire with control points (CVs) ``c0`` (k, 3) on the rest skin:
 Choices the thesis leaves open, made here: polylines (the thesis's final rig used linear wires);
 where several wires reach one vertex their dropoff weights are normalised when they sum past 1
 (a partition of unity, so overlapping wires blend instead of adding up); dropoffs are fractions of
-the head height; the deformation sets (the skin within the dropoff minus the lip the wire must not
-touch) keep the upper and lower lips apart. After the muscles the shared chain runs: skull
-push-to-surface, creases, skinning, eyelid sculptors (``common.Chain``).
+the head height. The deformation sets (the skin within the dropoff minus the lip the wire must
+not touch) keep the upper and lower lips apart, so they can part. A wire moves the skin within
+its dropoff on the mesh at hand (``deformation_set``): a set transferred vertex by vertex from the
+reference has holes, each a step from ``f`` to 0 that folds the skin. Where the lips join (the
+commissures, and the skin on from each corner where the two lip regions meet) a cut between
+them would shear one piece of skin, a saw-toothed lip line with flipped triangles in a smile and
+webs between the lips in disgust; so near that joint each lip also takes the other lip's wires,
+fully at the joint and not at all ``LIP_JOIN_RADIUS_REL`` of the mouth width away
+(``lip_joint``): the corners move as one and the lips part toward the middle. After the muscles
+the shared chain runs: skull push-to-surface, creases, skinning, eyelid sculptors
+(``common.Chain``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
-from mimetic.engines.common import Chain, muscle_frame, muscle_mask
-from mimetic.mesh.geometry import closest_on_polyline
+from mimetic.engines.common import Chain, deformable_vertices, muscle_frame, muscle_mask
+from mimetic.mesh.geometry import closest_on_polyline, vertex_adjacency
+from mimetic.mesh.weld import find_weld
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig, Wire
 
 CONTRACTION = 0.25  # joint scale reduction at full activation (s = 1 - 0.25)
 SPHINCTER_CONTRACTION = 0.35  # scale reduction about a sphincter's centre at full activation
 PUCKER = 0.6  # forward push of squeezed tissue, relative to its motion toward the centre
+LIP_JOIN_RADIUS_REL = 0.2
+"""Reach of the lips' joint, a fraction of the mouth width (1 cm on a 5 cm mouth): a lip vertex this
+close to where the lips join is moved by the other lip's wires too (``lip_joint``)."""
+LEFT_OUT_SHARE = 0.05
+"""A wire leaves a lip out when at most this share of the lip's vertices within its dropoff are in its
+deformation set (the recipe's sets hold none of the lip they leave out)."""
+LIP_JOIN_OUTER_REL = 0.3
+"""Where the lips join counts in the outer 30 % of each half of the mouth and beyond the corners, not
+in the middle (a mesh that closes its mouth slit with triangles joins the lips all along)."""
 
 
 def dropoff(x: np.ndarray) -> np.ndarray:
@@ -97,12 +116,88 @@ def locator_shares(weights: np.ndarray, rest: np.ndarray, values: np.ndarray) ->
     return np.divide(wa, others + weights, out=np.zeros_like(wa), where=wa > 0)
 
 
+def lip_joint(rig: Rig) -> np.ndarray:
+    """How much (n,) float64 in [0, 1] each lip vertex is moved by the wires of the other lip.
+
+    A wire's deformation set leaves out the lip it must not touch, so the lips can part. But the lips
+    are one piece of skin where they join: at the commissures and, on many meshes, along a seam
+    that runs on from each corner into the cheek (the ``upper_lip`` and ``lower_lip`` regions meet
+    there). Cut at that seam, the two lips' wires shear the skin (flipped triangles, a saw-toothed
+    lip line, webs between the lips). So a lip vertex at distance d from the joint also takes
+    ``f(d / r)`` of each wire that leaves its lip out (``f`` the wire dropoff, r =
+    ``LIP_JOIN_RADIUS_REL`` of the mouth width): at the joint both lips take the same wires alike
+    and move as one; a radius away they are free again.
+
+    The joint: vertices whose one-ring (across unwelded seams) holds vertices of both lips, in the
+    outer ``LIP_JOIN_OUTER_REL`` of each half of the mouth or beyond its corners; on a mesh whose
+    lips share no vertex or edge there, the vertices nearest the ``mouth_corner`` landmarks. 0 for
+    every vertex of a rig without the lip regions or the corner landmarks.
+    """
+    n = rig.n_vertices
+    joint = np.zeros(n)
+    upper, lower = rig.regions.get("upper_lip"), rig.regions.get("lower_lip")
+    corners = ("mouth_corner_L", "mouth_corner_R")
+    if upper is None or lower is None or not len(upper) or not len(lower):
+        return joint
+    if any(c not in rig.landmarks for c in corners):
+        return joint
+    v, f = rig.mesh.vertices, rig.mesh.faces
+    weld = find_weld(rig.mesh)
+    k = len(weld.first)
+    welded = weld.index[f]  # (m, 3) faces over welded vertices
+    near = vertex_adjacency(welded, k) + sp.identity(k, format="csr")  # closed one-rings
+    up, low = np.zeros(k), np.zeros(k)
+    up[weld.index[upper]] = 1.0
+    low[weld.index[lower]] = 1.0
+    joined = ((near @ up) > 0) & ((near @ low) > 0)  # (k,)
+    left, right = (rig.landmarks[c].position(v, f) for c in corners)
+    half = 0.5 * np.linalg.norm(left - right)
+    axis = (left - right) / (2 * half)
+    outer = np.abs((v - 0.5 * (left + right)) @ axis) >= (1 - LIP_JOIN_OUTER_REL) * half  # (n,)
+    at = np.flatnonzero(joined[weld.index] & outer)
+    points = v[at] if len(at) else np.array([left, right])
+    lips = np.union1d(upper, lower)
+    dist, _ = cKDTree(points).query(v[lips])
+    joint[lips] = dropoff(dist / (LIP_JOIN_RADIUS_REL * 2 * half))
+    return joint
+
+
+def deformation_set(
+    rig: Rig, wire: Wire, cv: np.ndarray, skin: np.ndarray, joint: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices (m,) int64 one wire moves and the share (m,) float64 in (0, 1] of its deformer
+    each takes.
+
+    The recipe's deformation set is the skin within the dropoff minus the lip the wire must not
+    move; the wire moves exactly that here, on this mesh: its set, every other skin vertex
+    (``skin``, sorted) within its dropoff that is not in a lip it leaves out (a transferred set has
+    holes where the user's skin lies within the dropoff but its reference point did not, each a
+    step from ``f(d/d0)`` to 0 that folds the skin), and, with share ``joint`` (n,)
+    (``lip_joint``), the left-out lip's vertices near where the lips join. A lip is left out when at
+    most ``LEFT_OUT_SHARE`` of its vertices within the dropoff are in the set.
+    """
+    members = np.asarray(wire.vertices, dtype=np.int64)
+    _, _, dist = closest_on_polyline(rig.mesh.vertices[skin], cv)
+    reach = skin[dist < wire.dropoff_rel * rig.scale]
+    out = [np.zeros(0, np.int64)]
+    for region in ("upper_lip", "lower_lip"):
+        ids = rig.regions.get(region)
+        reached = np.intersect1d(ids, reach) if ids is not None else ()
+        if len(reached) and np.isin(reached, members).mean() <= LEFT_OUT_SHARE:
+            out.append(np.asarray(ids, dtype=np.int64))
+    out = np.concatenate(out)
+    members = np.union1d(members, np.setdiff1d(reach, out))
+    joined = np.setdiff1d(out[joint[out] > 0], members)
+    return np.concatenate([members, joined]), np.concatenate([np.ones(len(members)), joint[joined]])
+
+
 class WireEngine:
     """The wire skin/muscle model with the thesis's deformation chain; prepare once, deform often.
 
     Prepared data: ``weights`` (K, c) constraint weight of each channel's locator on each of the
     K control points of all wires, ``rest`` (K,) rest-locator weights, ``motion`` (K, c, 3)
-    locator motion at full contraction, and ``spread`` (3n, 3K) sparse, the wire deformers'
+    locator motion at full contraction, ``joint`` (n,) how much each lip vertex takes of the other
+    lip's wires (``lip_joint``), and ``spread`` (3n, 3K) sparse, the wire deformers'
     dropoff-weighted interpolation from CV motion to vertex motion.
     """
 
@@ -119,13 +214,16 @@ class WireEngine:
         self.weights = np.zeros((k_total, c))
         self.rest = np.concatenate([w.rest_weight for w in rig.wires])
         self.motion = np.zeros((k_total, c, 3))
+        self.joint = lip_joint(rig)  # (n,) how much each lip vertex the other lip's wires move
+        skin = deformable_vertices(rig)
         rows, cols, vals = [], [], []
         for wire, cv, start in zip(rig.wires, cvs, starts, strict=False):
             for muscle, w in wire.muscle_weights.items():
                 j = rig.channel_index(muscle)
                 self.weights[start : start + len(cv), j] = w
                 self.motion[start : start + len(cv), j] = locator_motion(rig, cv, muscle)
-            r, k, val = _spread(rig, wire, cv)
+            ids, share = deformation_set(rig, wire, cv, skin, self.joint)
+            r, k, val = _spread(rig, ids, share, cv, wire.dropoff_rel)
             rows.append(r)
             cols.append(start + k)
             vals.append(val)
@@ -152,16 +250,18 @@ class WireEngine:
         return self.chain.apply(self.rig.mesh.vertices + self.muscle_offsets(values), values)
 
 
-def _spread(rig: Rig, wire: Wire, cv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Entries (vertex, CV, weight) of one wire's deformer: f(d/d0) (1 - t), f(d/d0) t.
+def _spread(
+    rig: Rig, ids: np.ndarray, share: np.ndarray, cv: np.ndarray, dropoff_rel: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entries (vertex, CV, weight) of one wire's deformer on vertices ``ids`` (m,), each taking
+    ``share`` (m,) of it: s f(d/d0) (1 - t), s f(d/d0) t.
 
     A vertex equally close to two segments (the midline of a symmetric wire) takes the mean of
     both closest points, so mirror-symmetric wires deform mirror-symmetrically.
     """
-    ids = np.asarray(wire.vertices)
     points = rig.mesh.vertices[ids]
     seg, t, dist = closest_on_polyline(points, cv)
-    f = dropoff(dist / (wire.dropoff_rel * rig.scale))
+    f = share * dropoff(dist / (dropoff_rel * rig.scale))
     rows, cols, vals = [ids, ids], [seg, seg + 1], [f * (1 - t), f * t]
     if len(cv) > 2:  # ties: the closest point on the other segments
         mask = np.ones((len(ids), len(cv) - 1), bool)
