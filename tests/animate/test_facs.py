@@ -92,7 +92,8 @@ def test_sided_values_mirror_each_other():
 
 def test_unsupported_action_units_say_why():
     unsupported = [u for u in action_units().values() if not u.supported]
-    assert {19, 33, 34} <= {u.number for u in unsupported}
+    assert {36, 37} <= {u.number for u in unsupported}  # the tongue bulging the cheek, wiping the lips
+    assert not {19, 22, 28, 33, 34, 35, 38, 39} & {u.number for u in unsupported}  # tissue actions
     assert all(u.note for u in unsupported)
 
 
@@ -161,7 +162,7 @@ def test_errors_name_the_problem_and_the_fix():
     with pytest.raises(FacsError, match=r"unknown action unit AU40.*nearest"):
         au_values("AU40")
     with pytest.raises(FacsError, match="tongue"):
-        au_values("AU19")
+        au_values("AU36")
     with pytest.raises(FacsError, match="no sides; write 'AU17'"):
         au_values("AU17_L")
     with pytest.raises(FacsError, match="AU46_L"):

@@ -429,10 +429,23 @@ def test_save_rig_stores_the_anatomy_and_loads_it_back(tmp_path):
     assert rig_differences(load_rig(path), rig) == []
 
 
+def test_load_rig_written_before_tissue_actions_derives_them(tmp_path):
+    """A version-2 file from before ``anatomy.actions`` existed loads with the actions derived."""
+    from mimetic.testing import small_rig
+
+    rig = small_rig()
+    assert {a.name for a in rig.anatomy.actions} >= {"cheek_puff_L", "lip_roll_upper", "tongue_out"}
+    good = save_rig(rig, tmp_path / "a.mrig")
+    assert len(json.loads(read_members(good)["rig.json"])["anatomy"]["actions"]) == len(rig.anatomy.actions)
+    old = rewrite(good, tmp_path / "old.mrig", doc=lambda d: d["anatomy"].pop("actions"))
+    assert rig_differences(load_rig(old), rig) == []
+
+
 @pytest.mark.parametrize(
     ("edit", "expected"),
     [
         (lambda d: d["anatomy"].pop("skull"), "anatomy.skull is missing"),
+        (lambda d: d["anatomy"]["actions"][0].update(gains={"ghost": 1.0}), "channels the rig lacks"),
         (lambda d: d["anatomy"]["creases"][0].update(gains={"ghost": 1.0}), "channels the rig lacks"),
         (
             lambda d: d["anatomy"]["creases"][0].update(gains={"frontalis_inner_L": "deep"}),

@@ -64,6 +64,9 @@ def test_muscle_actions_cover_every_muscle_and_the_bones(rig):
     assert actions[0].label == "rest" and not actions[0].values
     labels = [a.label for a in actions]
     assert set(rig.muscle_names) <= set(labels)
+    assert {"cheek_puff_L", "orbicularis_oris_marginalis_upper", "tongue_out"} <= set(labels)
+    tongue = next(a for a in actions if a.label == "tongue_out")
+    assert tongue.values["jaw_open"] > 0  # the tongue shows between open teeth
     assert {"jaw_open", "eyelids closed", "gaze left", "gaze up"} <= set(labels)
     for action in actions:
         pose(rig, action.values)  # every value is a valid channel value

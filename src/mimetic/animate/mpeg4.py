@@ -26,8 +26,9 @@ The eyeball FAPs 23-26 are solved jointly for the rig's shared gaze channels (``
 ``gaze_convergence``: exact while the eyes do not diverge; ``gaze_pitch``: the two eyes' mean),
 the head FAPs 48-50 set the head channels (1 AU = 1e-5 rad).
 
-**Unsupported FAPs** (``UNSUPPORTED``: tongue, ears, nose, cheek puff, pupils, eyeball thrust,
-chin depression) and directions the rig cannot produce (e.g. lowering the upper lip) are
+**Unsupported FAPs** (``UNSUPPORTED``: the tongue, which has no feature points in the rig, cheek
+puffs measured sideways, ears, the nose tip, pupils, eyeball thrust, chin depression) and
+directions the rig cannot produce (e.g. lowering the upper lip, narrowing a nostril) are
 *ignored with a* ``MimeticWarning`` naming them and the reason, not refused: FAP streams usually
 carry every parameter, and the rest of the face should still play. Unknown FAPs raise ``FapError``.
 

@@ -1,10 +1,11 @@
 """Pieces every engine shares: the deformation chain after the muscles, and muscle geometry.
 
-The chain follows the automated rigging thesis (§4.3.2): muscles -> skull -> creases ->
-skinning -> lid contact -> eyelid sculptors, then the accessories riveted to the skin (``attach``).
-The muscle stage is engine-specific; the rest is here. What the chain acts on (the skull, the
-creases, the lip and lid contacts, the accessories) is the rig's anatomy (``Rig.anatomy``): the
-engines only read it.
+The chain follows the automated rigging thesis (§4.3.2): muscles -> skull -> creases and tissue
+actions -> skinning -> lid contact -> eyelid sculptors, then the accessories riveted to the skin
+(``attach``). The muscle stage is engine-specific; the rest is here. What the chain acts on (the
+skull, the creases, the tissue actions, the lip and lid contacts, the accessories) is the rig's
+anatomy (``Rig.anatomy``): the engines only read it. Creases and tissue actions are offsets linear
+in their channels, added before skinning (so they ride the jaw and bake exactly).
 
 **Lid contact** (``mimetic.rig.anatomy.lids``): the upper lid's contact vertices never pass below
 the lower lid's margin, measured along the eye frame's up axis at each vertex's own position along
@@ -32,13 +33,17 @@ from mimetic.engines.attach import ride
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.head.parts import eyeball_profile
 from mimetic.rig.anatomy.anatomy import skin_vertices
-from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, eye_frame
+from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, LID_THICKNESS_REL, eye_frame
 from mimetic.rig.model import Rig
 
 LID_RIGID_WEIGHT = 0.35  # eyelid bone weight from which muscles leave a vertex to the lid
 SCULPTOR_MARGIN_REL = LID_CLEARANCE_REL  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
+LID_SCULPTED_WEIGHT = 0.05
+"""Vertices a lid bone weights this much or more are sculpted with the lid regions."""
 LID_COLUMN_REACH = 2.0
 """How far along the lid (in median steps of the lower margin) a contact opens the upper lid's column."""
+LID_BRIDGE_REL = 0.1
+"""The upper lid bridges dips of the lower margin up to this × the eye's width along it."""
 LID_MAX_OPENING_RAD = 1.5
 """The most a contact turns the upper lid back (rad)."""
 LID_BISECTIONS = 30
@@ -67,6 +72,7 @@ class EyeContact:
     follower_weight: np.ndarray  # (f,) their upper-lid weight
     follower_u: np.ndarray  # (f,) their rest u
     reach: float  # rig units along u: how far a contact opens the column
+    bridge: float  # rig units along u: the widest dip of the lower margin the upper lid bridges
 
 
 def _turn(d: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -75,10 +81,23 @@ def _turn(d: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return d * c + np.cross(axis, d) * s + np.outer(d @ axis, axis) * (1.0 - c)
 
 
-def _lower_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(u, v) of a margin polyline (j, 3 in the eye frame), sorted by u."""
+def _lower_line(points: np.ndarray, span: float) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) of the line the upper lid closes onto: the lower margin (j, 3 in the eye frame) sorted
+    by u, bridged over its dips no wider than ``span`` along u (each point raised to the highest chord
+    between two margin points around it at most ``span`` apart): the upper lid's margin is stiff (the
+    tarsal plate), and does not follow the lower lid's curl into a corner point by point."""
     order = np.argsort(points[:, 0], kind="stable")
-    return points[order, 0], points[order, 1]
+    u, v = points[order, 0], points[order, 1]
+    if len(u) < 3:
+        return u, v
+    a, b = np.triu_indices(len(u), 2)  # chords (a, b) with a point between them
+    a, b = a[u[b] - u[a] <= span], b[u[b] - u[a] <= span]
+    lifted = v.copy()
+    for first, last in zip(a, b, strict=True):
+        t = (u[first + 1 : last] - u[first]) / max(u[last] - u[first], 1e-300)
+        chord = (1 - t) * v[first] + t * v[last]
+        lifted[first + 1 : last] = np.maximum(lifted[first + 1 : last], chord)
+    return u, lifted
 
 
 def _clearance(uvw: np.ndarray, line: tuple[np.ndarray, np.ndarray], *, beyond: bool = True) -> np.ndarray:
@@ -108,12 +127,12 @@ def prepare_lid_contacts(rig: Rig) -> list[EyeContact]:
             continue
         eye = rig.bone(f"eye_{side}")
         inner, outer = rig.landmark_positions(corners)
-        origin, axes, _ = eye_frame(inner, outer, eye.tail - eye.head)
+        origin, axes, width = eye_frame(inner, outer, eye.tail - eye.head)
         lid = rig.bone_index(f"eyelid_upper_{side}")
         layers, steps = [], []
         for contact in layers_of:
             rest_upper = (v[contact.upper] - origin) @ axes.T
-            line = _lower_line((v[contact.lower] - origin) @ axes.T)
+            line = _lower_line((v[contact.lower] - origin) @ axes.T, LID_BRIDGE_REL * width)
             floor = np.minimum(_clearance(rest_upper, line), LID_CONTACT_GAP_REL * rig.scale)
             layers.append((contact.upper, contact.lower, contact.tucked, floor, rest_upper[:, 0]))
             if not contact.tucked and len(line[0]) > 1:
@@ -134,6 +153,7 @@ def prepare_lid_contacts(rig: Rig) -> list[EyeContact]:
                 follower_weight,
                 (v[followers] - origin) @ axes[0],
                 LID_COLUMN_REACH * (max(steps) if steps else 0.0),
+                LID_BRIDGE_REL * width,
             )
         )
     return out
@@ -168,7 +188,7 @@ def keep_lids_apart(
     for upper, lower, tucked, least, rest_u in eye.layers:
         if tucked and columns:  # a skirt inside the eyeball does not hold the lid open
             continue
-        line = _lower_line(frame(out[lower]))
+        line = _lower_line(frame(out[lower]), eye.bridge)
         if len(line[0]) < 2:
             continue
         crossing = _clearance(frame(out[upper]), line, beyond=not columns) < least
@@ -277,9 +297,9 @@ class Chain:
     def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
         self.rig = rig
         anatomy = rig.anatomy
-        folds = anatomy.creases if creases else ()
+        folds = (anatomy.creases if creases else ()) + anatomy.actions  # both are per-channel offsets
         rows, cols, vals = [], [], []
-        for crease in folds:  # one row per channel: the summed crease offsets it drives
+        for crease in folds:  # one row per channel: the summed crease and action offsets it drives
             offsets = (crease.offsets_rel * rig.scale).ravel()
             columns = (3 * crease.vertices[:, None] + np.arange(3)).ravel()
             for channel, gain in crease.gains.items():
@@ -299,19 +319,25 @@ class Chain:
             self.skull = LinearNDInterpolator(surface[:, :2], surface[:, 2])
         v = rig.mesh.vertices
         self.lids = []
+        dense = rig.skin_weights.tocsc()
         for side in ("L", "R"):
             if f"eye_{side}" not in rig.bone_names:
                 continue
-            ids = np.concatenate(
-                [rig.regions.get(f"eyelid_{lid}_{side}", np.zeros(0, np.int64)) for lid in ("upper", "lower")]
-            )
+            ids = [
+                rig.regions.get(f"eyelid_{lid}_{side}", np.zeros(0, np.int64)) for lid in ("upper", "lower")
+            ]
+            for lid in ("upper", "lower"):  # and whatever the lid bones move (skin the lid stretches)
+                if f"eyelid_{lid}_{side}" in rig.bone_names:
+                    column = dense[:, rig.bone_index(f"eyelid_{lid}_{side}")]
+                    ids.append(column.indices[column.data >= LID_SCULPTED_WEIGHT])
+            ids = np.unique(np.concatenate(ids)).astype(np.int64)
             bone = rig.bone(f"eye_{side}")
-            # only lid vertices clear of the eyeball at rest (the conjunctiva skirt is tucked inside)
+            # only lid vertices clear of the eyeball at rest (the conjunctiva skirt is tucked inside);
+            # each keeps its rest height over the eyeball, up to LID_THICKNESS_REL
             dist, limit = self._eyeball_clearance(v[ids], bone.head, bone.tail - bone.head)
             outside = dist >= limit
-            self.lids.append(
-                (ids[outside].astype(np.int64), rig.bone_index(f"eye_{side}"), bone.head, bone.tail)
-            )
+            height = np.minimum(dist - limit, LID_THICKNESS_REL * rig.scale)[outside]
+            self.lids.append((ids[outside], rig.bone_index(f"eye_{side}"), bone.head, bone.tail, height))
         self.accessories = anatomy.accessories
         self.lid_contacts = prepare_lid_contacts(rig)
 
@@ -349,11 +375,13 @@ class Chain:
         v = linear_blend_skinning(v, self.weights, transforms)
         for eye in self.lid_contacts:  # the upper lid's columns stop on the lower margin
             v = keep_lids_apart(eye, v, before, transforms, columns=True)
-        for ids, bone, rest_centre, rest_tip in self.lids:
-            # sculptor: lids never inside the eyeball (its profile, the cornea included)
+        for ids, bone, rest_centre, rest_tip, height in self.lids:
+            # sculptor: lids never inside the eyeball (its profile, the cornea included), and no
+            # thinner over it than at rest (skinning's blend shortens a turning lid's radius)
             m = transforms[bone]
             centre = m[:3, :3] @ rest_centre + m[:3, 3]
             dist, limit = self._eyeball_clearance(v[ids], centre, m[:3, :3] @ (rest_tip - rest_centre))
+            limit = limit + height
             inside = dist < limit
             d = v[ids[inside]] - centre
             v[ids[inside]] = centre + d * (limit[inside] / dist[inside])[:, None]

@@ -15,9 +15,10 @@ kinds (``STATUS``):
   (``s_L + s_R = 1``). So the baked pair adds up to the symmetric motion and each half is
   one-sided, as artists split symmetric shapes. ``eyeLookOutLeft`` pairs with
   ``eyeLookInRight`` (the eyes cannot diverge, but both can look left);
-* approximate (``APPROXIMATE``): the nearest motion the rig has (the lips cannot roll or flare);
-* unsupported (``UNSUPPORTED``): ``tongueOut`` (no tongue channel) and ``cheekPuff`` (no
-  inflation) get a stand-in posture so that all 52 targets exist.
+* approximate (``APPROXIMATE``): the nearest motion the rig has (``mouthClose``: the lips
+  closing over an open jaw; ``mouthShrugUpper``: the upper lip raised, not everted);
+* unsupported (``UNSUPPORTED``): none today (the table can mark a shape the rig cannot make; it
+  gets a stand-in posture so that all 52 targets exist, and the reverse map leaves it out).
 
 **Reverse map** (``arkit_weights``): the ARKit weights ``w`` in [0, 1] that best reproduce a
 pose's displacement ``d`` with the baked shapes ``S``, on the vertices that at least one shape

@@ -10,13 +10,14 @@ A ``.mrig`` file is a zip archive (ZIP_DEFLATED) of three members:
   (k,) int64, wire weights (p,) float64, skin weights as CSR ``data`` (nnz,) float64, ``indices``
   (nnz,) int64 and ``indptr`` (n + 1,) int64, and the anatomy's arrays (crease vertices and
   offsets, skull vertices and surface, lip contact pairs, accessory rivets, tissue thickness, lid
-  contact vertices).
+  contact vertices, tissue action vertices and offsets).
 
 Versions: 2 adds the rig's anatomy (``Rig.anatomy``: creases, skull, lip contact, accessories,
-tissue thickness, and since the lids' contact was added, ``lids``). Version-1 files still load:
+tissue thickness, and since they were added, ``lids`` and ``actions``). Version-1 files still load:
 their anatomy is derived from the rest of the rig by the current rules
 (``mimetic.rig.anatomy.derive_anatomy``), with a log line saying so; a version-2 file written before
-``lids`` existed gets its lids derived the same way.
+``lids`` or ``actions`` existed gets them derived the same way (for the channels it has: a rig
+saved before the tissue channels existed has no cheek puff or lip roll until it is rebuilt).
 
 Floats are stored bit-exactly (arrays as raw float64; JSON numbers with Python's round-trip
 ``repr``), and every name and order is kept, so ``load_rig(save_rig(rig, p)) == rig``. Files are
@@ -183,19 +184,25 @@ def _encode(rig: Rig) -> dict[str, bytes]:
     }
 
 
+def _fields_json(fields: tuple[Crease, ...], key: str, put) -> list[dict[str, Any]]:
+    """Creases or actions as rig.json objects, their arrays stored with ``put``."""
+    return [
+        {
+            "name": c.name,
+            "gains": dict(c.gains),
+            "vertices": put(f"anatomy.{key}.{i}.vertices", c.vertices),
+            "offsets_rel": put(f"anatomy.{key}.{i}.offsets_rel", c.offsets_rel),
+        }
+        for i, c in enumerate(fields)
+    ]
+
+
 def _anatomy_json(anatomy: Anatomy, put) -> dict[str, Any]:
     """rig.json's ``anatomy`` object; ``put(key, array)`` stores an array and returns its key."""
     acc, skull = anatomy.accessories, anatomy.skull
     return {
-        "creases": [
-            {
-                "name": c.name,
-                "gains": dict(c.gains),
-                "vertices": put(f"anatomy.creases.{i}.vertices", c.vertices),
-                "offsets_rel": put(f"anatomy.creases.{i}.offsets_rel", c.offsets_rel),
-            }
-            for i, c in enumerate(anatomy.creases)
-        ],
+        "creases": _fields_json(anatomy.creases, "creases", put),
+        "actions": _fields_json(anatomy.actions, "actions", put),
         "skull": {
             "vertices": put("anatomy.skull.vertices", skull.vertices),
             "surface": put("anatomy.skull.surface", skull.surface),
@@ -590,11 +597,12 @@ def _decode(doc: Any, arrays: Mapping[str, np.ndarray], version: int = FORMAT_VE
     if version >= 2:
         anatomy_doc = _get(doc, "anatomy", "", "an object")
         anatomy = _decode_anatomy(anatomy_doc, A, len(bones))
-        if "lids" not in anatomy_doc:  # written before the lids' contact was stored
-            log.info("rig.json: the anatomy has no lids; they are derived by the current rules")
+        missing = [key for key in ("lids", "actions") if key not in anatomy_doc]
+        if missing:  # written before the lids' contact and the tissue actions were stored
+            log.info("rig.json: the anatomy has no %s; derived by the current rules", " or ".join(missing))
             names = tuple(c.name for c in channels)
-            lids = derive_anatomy(mesh, landmarks, regions, skin_weights, scale, names).lids
-            anatomy = replace(anatomy, lids=lids)
+            derived = derive_anatomy(mesh, landmarks, regions, skin_weights, scale, names)
+            anatomy = replace(anatomy, **{key: getattr(derived, key) for key in missing})
     return Rig(
         mesh=mesh,
         units=units,
@@ -611,11 +619,13 @@ def _decode(doc: Any, arrays: Mapping[str, np.ndarray], version: int = FORMAT_VE
     )
 
 
-def _decode_anatomy(doc: dict, A: _Arrays, n_bones: int) -> Anatomy:
-    """``Anatomy`` from rig.json's ``anatomy`` object (array shapes and dtypes checked)."""
-    creases = []
-    for i, c in enumerate(_get(doc, "creases", "anatomy", "a list")):
-        where = f"anatomy.creases[{i}]"
+def _decode_fields(doc: dict, key: str, A: _Arrays) -> tuple[Crease, ...]:
+    """Creases or actions (``key``) from rig.json's ``anatomy`` object; absent actions are none."""
+    if key == "actions" and key not in doc:
+        return ()
+    out = []
+    for i, c in enumerate(_get(doc, key, "anatomy", "a list")):
+        where = f"anatomy.{key}[{i}]"
         if not isinstance(c, dict):
             raise RigFormatError(f"rig.json: {where} should be an object; got a {_json_type(c)}")
         vertices = A.get(c, "vertices", where, np.int64, (None,))
@@ -623,7 +633,7 @@ def _decode_anatomy(doc: dict, A: _Arrays, n_bones: int) -> Anatomy:
         for channel, gain in gains.items():
             if isinstance(gain, bool) or not isinstance(gain, (int, float)):
                 raise RigFormatError(f"rig.json: {where}.gains[{channel!r}] should be a number; got {gain!r}")
-        creases.append(
+        out.append(
             Crease(
                 name=_get(c, "name", where, "a string"),
                 gains=gains,
@@ -631,13 +641,18 @@ def _decode_anatomy(doc: dict, A: _Arrays, n_bones: int) -> Anatomy:
                 offsets_rel=A.get(c, "offsets_rel", where, np.float64, (len(vertices), 3)),
             )
         )
+    return tuple(out)
+
+
+def _decode_anatomy(doc: dict, A: _Arrays, n_bones: int) -> Anatomy:
+    """``Anatomy`` from rig.json's ``anatomy`` object (array shapes and dtypes checked)."""
     skull_doc = _get(doc, "skull", "anatomy", "an object")
     skull_ids = A.get(skull_doc, "vertices", "anatomy.skull", np.int64, (None,))
     acc_doc = _get(doc, "accessories", "anatomy", "an object")
     acc_ids = A.get(acc_doc, "vertices", "anatomy.accessories", np.int64, (None,))
     a = len(acc_ids)
     return Anatomy(
-        creases=tuple(creases),
+        creases=_decode_fields(doc, "creases", A),
         skull=Skull(skull_ids, A.get(skull_doc, "surface", "anatomy.skull", np.float64, (len(skull_ids), 3))),
         lip_contact=A.get(doc, "lip_contact", "anatomy", np.int64, (None, 2)),
         accessories=Accessories(
@@ -651,6 +666,7 @@ def _decode_anatomy(doc: dict, A: _Arrays, n_bones: int) -> Anatomy:
         lids=tuple(_decode_lid(c, i, A) for i, c in enumerate(_get(doc, "lids", "anatomy", "a list")))
         if "lids" in doc
         else (),
+        actions=_decode_fields(doc, "actions", A),
     )
 
 

@@ -781,14 +781,16 @@ def rig_differences(a: Rig, b: Rig, limit: int = 10) -> list[str]:
 
 def anatomy_differences(a: Anatomy, b: Anatomy, array, value, out: list[str]) -> None:
     """Append to ``out`` the paths where two anatomies differ (``array``/``value`` compare and report)."""
-    if len(a.creases) != len(b.creases):
-        out.append(f"anatomy.creases: {len(a.creases)} vs {len(b.creases)} items")
-    else:
-        for i, (x, y) in enumerate(zip(a.creases, b.creases, strict=True)):
-            value(f"anatomy.creases[{i}].name", x.name, y.name)
-            value(f"anatomy.creases[{i}].gains", dict(x.gains), dict(y.gains))
-            array(f"anatomy.creases[{i}].vertices", x.vertices, y.vertices)
-            array(f"anatomy.creases[{i}].offsets_rel", x.offsets_rel, y.offsets_rel)
+    for key in ("creases", "actions"):
+        fa, fb = getattr(a, key), getattr(b, key)
+        if len(fa) != len(fb):
+            out.append(f"anatomy.{key}: {len(fa)} vs {len(fb)} items")
+            continue
+        for i, (x, y) in enumerate(zip(fa, fb, strict=True)):
+            value(f"anatomy.{key}[{i}].name", x.name, y.name)
+            value(f"anatomy.{key}[{i}].gains", dict(x.gains), dict(y.gains))
+            array(f"anatomy.{key}[{i}].vertices", x.vertices, y.vertices)
+            array(f"anatomy.{key}[{i}].offsets_rel", x.offsets_rel, y.offsets_rel)
     array("anatomy.skull.vertices", a.skull.vertices, b.skull.vertices)
     array("anatomy.skull.surface", a.skull.surface, b.skull.surface)
     array("anatomy.lip_contact", a.lip_contact, b.lip_contact)

@@ -21,8 +21,12 @@ from mimetic.head.shape import skin_geometry
 from mimetic.head.topology import build_topology
 from mimetic.mesh.geometry import closest_on_polyline
 from mimetic.mesh.model import SurfacePoint
+from mimetic.rig.anatomy.actions import CHANNELS as ACTION_CHANNELS
 from mimetic.rig.bones import EYELID_CLOSED_RAD, bone_placement, skin_weights
 from mimetic.rig.model import Channel, Muscle, Rig, Wire
+
+CHEEK_SUCK = -0.5
+"""The lower end of ``cheek_puff``: the puff's field reversed draws the cheeks in (FACS AU35)."""
 
 # (name, kind, origin, insertion, width_rel, falloff_start_rel, falloff_end_rel, angle_deg, region)
 # origin / insertion: a landmark name or a canonical chart point (X, Y) on the left side;
@@ -47,7 +51,9 @@ _MUSCLES_L = [
 ]
 _MUSCLES_C = [
     ("procerus", "linear", "nose_bridge_upper", "glabella", 0.04, 0.85, 1.4, 35, "forehead", False),
-    ("mentalis", "linear", "pogonion", (0.0, -9.0), 0.05, 0.8, 1.3, 40, "chin", True),
+    # the mentalis runs from the chin boss up toward the lower lip (1.2-1.6 cm) and lifts the whole lip
+    # above it: its zone (Waters' radial falloff, the vector engine) reaches 2.5 lengths
+    ("mentalis", "linear", "pogonion", (0.0, -8.4), 0.05, 0.8, 2.5, 40, "chin", True),
 ]
 # sphincters: (name, side, centre, semi-major end (left-side chart point, mirrored for R), semi-minor);
 # a sphincter acts on everything inside its ellipse (both lips, both lids), so it has no region
@@ -174,17 +180,24 @@ class _Places:
         first_face[valid] = order[starts[valid]] // 3
         self.first_face = first_face
 
-    def vertex(self, where, side: str) -> int:
+    def vertex(self, where, side: str, avoid: int = -1) -> int:
+        """The vertex of a landmark name or of the front vertex nearest a chart point other than
+        ``avoid`` (a muscle's other end: on a coarse head both ends can be nearest one vertex)."""
         if isinstance(where, str):
             name = where if where in self.head.landmarks else f"{where}_{side}"
             return int(self.head.landmarks[name])
         x, y = where
         target = np.array([x if side != "R" else -x, y])
-        ids = self.front
+        ids = self.front[self.front != avoid]
         return int(ids[np.argmin(np.linalg.norm(self.chart[ids] - target, axis=1))])
 
-    def point(self, where, side: str) -> SurfacePoint:
-        return self.vertex_point(self.vertex(where, side))
+    def point(self, where, side: str, avoid: int = -1) -> SurfacePoint:
+        return self.vertex_point(self.vertex(where, side, avoid))
+
+    def ends(self, origin, insertion, side: str) -> tuple[SurfacePoint, SurfacePoint]:
+        """A muscle's origin and insertion, never the same vertex."""
+        first = self.vertex(origin, side)
+        return self.vertex_point(first), self.point(insertion, side, avoid=first)
 
     def vertex_point(self, vertex: int) -> SurfacePoint:
         face = int(self.first_face[vertex])
@@ -199,13 +212,14 @@ def _muscles(head: Head, places: _Places) -> list[Muscle]:
     for side in ("L", "R"):
         for name, kind, origin, insertion, width, fs, fe, angle, region in _MUSCLES_L:
             reg = region if region in head.regions else f"{region}_{side}"
+            start, end = places.ends(origin, insertion, side)
             muscles.append(
                 Muscle(
                     name=f"{name}_{side}",
                     kind=kind,
                     side=side,
-                    origin=places.point(origin, side),
-                    insertion=places.point(insertion, side),
+                    origin=start,
+                    insertion=end,
                     width_rel=width,
                     falloff_start_rel=fs,
                     falloff_end_rel=fe,
@@ -214,13 +228,14 @@ def _muscles(head: Head, places: _Places) -> list[Muscle]:
                 )
             )
     for name, kind, origin, insertion, width, fs, fe, angle, region, reversed_ in _MUSCLES_C:
+        start, end = places.ends(origin, insertion, "C")
         muscles.append(
             Muscle(
                 name=name,
                 kind=kind,
                 side="C",
-                origin=places.point(origin, "C"),
-                insertion=places.point(insertion, "C"),
+                origin=start,
+                insertion=end,
                 width_rel=width,
                 falloff_start_rel=fs,
                 falloff_end_rel=fe,
@@ -305,9 +320,14 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float
 
 
 def _channels(muscles: list[Muscle]) -> list[Channel]:
-    """The pivot's channels: muscles in [0, 1], then jaw, eyelids (``eyelid_upper`` at its maximum,
+    """The pivot's channels: muscles in [0, 1], the tissue actions' own channels (``cheek_puff`` down
+    to CHEEK_SUCK draws the cheeks in), then jaw, eyelids (``eyelid_upper`` at its maximum,
     EYELID_CLOSED_RAD, closes the eye on every head), gaze and head, with their units."""
     channels = [Channel(m.name, 0.0, 1.0, group="muscles") for m in muscles]
+    channels += [
+        Channel(name, CHEEK_SUCK if name.startswith("cheek_puff") else 0.0, 1.0, group=group)
+        for name, (group, _) in ACTION_CHANNELS.items()
+    ]
     channels += [
         Channel("jaw_open", -0.05, 0.45, unit="rad", group="jaw"),
         Channel("jaw_slide", -0.03, 0.03, unit="rel", group="jaw"),

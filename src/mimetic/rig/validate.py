@@ -150,8 +150,10 @@ def _check_anatomy(rig: Rig) -> None:
     contact names an eye."""
     anatomy, n = rig.anatomy, rig.n_vertices
     fix = "re-derive it: dataclasses.replace(rig, anatomy=None)"
-    for i, crease in enumerate(anatomy.creases):
-        where = f"anatomy.creases[{i}] {crease.name!r}"
+    fields = [("creases", i, c) for i, c in enumerate(anatomy.creases)]
+    fields += [("actions", i, c) for i, c in enumerate(anatomy.actions)]
+    for key, i, crease in fields:
+        where = f"anatomy.{key}[{i}] {crease.name!r}"
         _check_indices(crease.vertices, n, f"{where}.vertices", "vertices")
         if crease.offsets_rel.shape != (len(crease.vertices), 3) or not np.isfinite(crease.offsets_rel).all():
             raise RigError(

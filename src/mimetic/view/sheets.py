@@ -24,6 +24,7 @@ from mimetic.mesh.model import Mesh, surface_positions
 from mimetic.render.camera import VIEWS, Camera
 from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import pose
+from mimetic.rig.anatomy.actions import CHANNELS as TISSUE_CHANNELS
 from mimetic.rig.model import Rig
 from mimetic.view.look import rig_look
 from mimetic.view.sheet import contact_sheet
@@ -166,16 +167,20 @@ def _short(view: str) -> str:
 
 
 def muscle_actions(rig: Rig) -> tuple[Action, ...]:
-    """The muscle sheet's actions: rest, every muscle channel at 1, then the bones.
+    """The muscle sheet's actions: rest, every muscle channel at 1, the tissue actions' own channels
+    at 1 (the tongue's with the jaw half open, so it shows), then the bones.
 
     The bones are the jaw fully open, both upper eyelids closed, gaze to the subject's left and
     up, each at its channel's maximum.
     """
     actions = [Action("rest", {})]
-    for m in rig.muscles:
-        side = m.name[-1] if m.name[-2:] in ("_L", "_R") else None
-        actions.append(Action(m.name, {m.name: 1.0}, side))
     maximum = {c.name: c.maximum for c in rig.channels}
+    for name in [*rig.muscle_names, *(c for c in TISSUE_CHANNELS if c in maximum)]:
+        side = name[-1] if name[-2:] in ("_L", "_R") else None
+        values = {name: 1.0}
+        if TISSUE_CHANNELS.get(name, ("",))[0] == "tongue" and "jaw_open" in maximum:
+            values["jaw_open"] = 0.5 * maximum["jaw_open"]
+        actions.append(Action(name, values, side))
     extras = [
         ("jaw_open", ("jaw_open",), None),
         ("eyelids closed", ("eyelid_upper_L", "eyelid_upper_R"), None),

@@ -9,6 +9,9 @@
   vertex riveted to the skin under its root;
 * ``lids``: where each eye's upper lid meets its lower lid (the margins' contact, kept by the
   engines so lids close but never cross), and the closing weights that bring them together;
+* ``actions``: tissue actions, the displacement fields of muscles that wires and vector muscles
+  cannot make (the frontalis lifting the whole forehead, the cheek raised toward the eye, the lips
+  rolled in or pushed out, the cheeks puffed, the tongue put out), each linear in one channel;
 * ``thickness``: the soft-tissue thickness under every skin vertex (thin on the lids and over the
   nose, thick on the cheeks), which the physically based engines lay their tissue layers on.
 
@@ -21,6 +24,7 @@ fractions of the head height (``Rig.scale``), named ``_rel``.
 """
 
 from mimetic.rig.anatomy.accessories import Accessories, find_accessories
+from mimetic.rig.anatomy.actions import Action, find_actions
 from mimetic.rig.anatomy.anatomy import Anatomy, derive_anatomy
 from mimetic.rig.anatomy.creases import Crease, find_creases
 from mimetic.rig.anatomy.lids import LidContact, closing_weights, find_lid_contacts
@@ -30,6 +34,7 @@ from mimetic.rig.anatomy.tissue import tissue_thickness
 
 __all__ = [
     "Accessories",
+    "Action",
     "Anatomy",
     "Crease",
     "LidContact",
@@ -37,6 +42,7 @@ __all__ = [
     "closing_weights",
     "derive_anatomy",
     "find_accessories",
+    "find_actions",
     "find_creases",
     "find_lid_contacts",
     "forehead_skull",

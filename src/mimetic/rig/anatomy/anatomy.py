@@ -15,6 +15,7 @@ from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint
 from mimetic.mesh.weld import find_weld
 from mimetic.rig.anatomy.accessories import Accessories, find_accessories
+from mimetic.rig.anatomy.actions import Action, find_actions
 from mimetic.rig.anatomy.creases import Crease, find_creases
 from mimetic.rig.anatomy.lids import LidContact, find_lid_contacts
 from mimetic.rig.anatomy.lips import lip_contact
@@ -41,6 +42,10 @@ class Anatomy:
     lids : tuple of LidContact
         Where each eye's upper lid meets its lower lid (``mimetic.rig.anatomy.lids``); empty for a
         mesh without lids.
+    actions : tuple of Action
+        Tissue actions (``mimetic.rig.anatomy.actions``): per-channel displacement fields added
+        before skinning, as the creases are (frontalis sheet, cheek raise, lip roll, cheek puff,
+        tongue …).
     """
 
     creases: tuple[Crease, ...]
@@ -49,10 +54,12 @@ class Anatomy:
     accessories: Accessories
     thickness_rel: np.ndarray
     lids: tuple[LidContact, ...] = ()
+    actions: tuple[Action, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "creases", tuple(self.creases))
         object.__setattr__(self, "lids", tuple(self.lids))
+        object.__setattr__(self, "actions", tuple(self.actions))
         for name, dtype in (("lip_contact", np.int64), ("thickness_rel", np.float64)):
             array = np.array(getattr(self, name), dtype=dtype, copy=True)
             array.setflags(write=False)
@@ -100,6 +107,17 @@ def _anatomy(
         accessories=find_accessories(mesh, scale, skin_weights),
         thickness_rel=tissue_thickness(v, skin_faces, skin, regions, scale),
         lids=find_lid_contacts(v, f, mesh.parts, regions, corners),
+        actions=find_actions(  # on the skin alone: a mouth cavity's own normals do not tilt the lips'
+            v,
+            vertex_normals(v, f[mesh.parts["skin"]]) if "skin" in mesh.parts else normals,
+            crease_skin,
+            mesh.part_vertices("tongue") if "tongue" in mesh.parts else np.zeros(0, np.int64),
+            landmark,
+            set(landmarks),
+            dict(regions),
+            channel_names,
+            scale,
+        ),
     )
 
 
@@ -113,7 +131,7 @@ def derive_anatomy(
 ) -> Anatomy:
     """The anatomy of a rig (the rig's rest mesh, landmarks, regions, skin weights and head height
     ``scale``), computed on the mesh with its unwelded seams merged and handed back to every copy
-    of a merged vertex. Channels the rig lacks drive no crease."""
+    of a merged vertex. Channels the rig lacks drive no crease or action."""
     weld = find_weld(mesh)
     channels = set(channel_names)
     if weld.n_merged == 0:
@@ -138,10 +156,13 @@ def derive_anatomy(
         offset = np.arange(len(rows)) - np.repeat(np.cumsum(counts) - counts, counts)
         return order[first + offset], rows
 
-    creases = []
-    for crease in inner.creases:
-        ids, rows = copies(crease.vertices)
-        creases.append(replace(crease, vertices=ids, offsets_rel=crease.offsets_rel[rows]))
+    def spread(fields: tuple[Crease, ...]) -> tuple[Crease, ...]:
+        out = []
+        for field in fields:
+            ids, rows = copies(field.vertices)
+            out.append(replace(field, vertices=ids, offsets_rel=field.offsets_rel[rows]))
+        return tuple(out)
+
     skull_ids, rows = copies(inner.skull.vertices)
     pairs = []
     for upper, lower in inner.lip_contact:
@@ -158,10 +179,11 @@ def derive_anatomy(
         for contact in inner.lids
     )
     return Anatomy(
-        creases=tuple(creases),
+        creases=spread(inner.creases),
         skull=Skull(skull_ids, inner.skull.surface[rows]),
         lip_contact=np.array(pairs, dtype=np.int64).reshape(-1, 2),
         accessories=accessories,
         thickness_rel=inner.thickness_rel[weld.index],
         lids=lids,
+        actions=spread(inner.actions),
     )

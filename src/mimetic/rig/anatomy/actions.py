@@ -1,0 +1,433 @@
+"""Tissue actions: the displacement fields of muscles that wires and vector muscles cannot make.
+
+A wire or a Waters muscle moves skin near its insertion toward its origin. Much of what a face does
+is tissue moving as a sheet or a mass instead (the automated-rigging thesis's §8, the survey's
+muscle catalogue): the frontalis lifts the whole forehead, the corrugator and procerus gather the
+brows, the orbital orbicularis oculi lifts the cheek toward the eye (AU6), a smile piles the malar
+fat up, air pressure puffs the cheeks, the marginal orbicularis oris rolls the lips in and its
+peripheral part pushes them out into a funnel, the lips slide sideways together, the nasalis and
+the dilator naris move the nose's wing, the levator of the nose wrinkles and lifts its side, and
+the tongue pokes out, lifts its tip or draws back.
+
+Each is an ``Action``: a displacement field over the rest surface, linear in one channel and added
+before skinning (as the creases are), so it bakes exactly and follows the jaw it rides on. Two
+kinds build them from the rig's own landmarks and normals, in fractions of the head height:
+
+* ``Bump``: a smooth ellipsoidal bump ``w = (1 − r²)²`` placed from a landmark, moving its tissue
+  by a vector slid onto the surface (the tissue slides over the bone) plus a bulge along the normal;
+* ``Roll``: a lip turning about a horizontal line behind it (``θ x̂ × (p − pivot)``), weighted by a
+  bump over the lip.
+
+The constants (``BUMPS``, ``ROLLS``) were calibrated as mechanisms against captured expressions
+(ICT-FaceKit's shapes: each mechanism's place, reach and amplitude, a dozen numbers, fitted on the
+neutral and applied to every head from its own landmarks), not as shapes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from mimetic.rig.anatomy.creases import Crease
+
+Action = Crease
+"""An action is stored as a crease is: channel gains, vertices and offsets at full activation."""
+
+MIN_WEIGHT = 1e-3
+"""Vertices a field moves by less than this share of its amplitude are left out."""
+
+
+@dataclass(frozen=True)
+class Bump:
+    """A tissue mass or sheet moved as one by a muscle (one per side when ``sided``).
+
+    Attributes
+    ----------
+    name : str
+        Action name; ``_L``/``_R`` is appended for sided bumps.
+    channel : str
+        The channel driving it (side appended for sided bumps).
+    anchor : str
+        The landmark it is placed from (side appended for sided bumps).
+    centre_rel : (3,) float
+        Bump centre from the anchor, × head height; x points to the bump's own side (mirrored).
+    radii_rel : (3,) float
+        Semi-axes along x, y, z, × head height.
+    slide_rel : (3,) float
+        Motion at the bump's centre at full activation, × head height, slid onto the surface; x to
+        the bump's own side.
+    bulge_rel : float
+        Motion along the outward normal at the centre at full activation, × head height.
+    sided : bool
+        One bump per side (``_L``, ``_R``) or one on the midline.
+    """
+
+    name: str
+    channel: str
+    anchor: str
+    centre_rel: tuple[float, float, float]
+    radii_rel: tuple[float, float, float]
+    slide_rel: tuple[float, float, float]
+    bulge_rel: float
+    sided: bool = True
+
+
+@dataclass(frozen=True)
+class Roll:
+    """A lip turned about a horizontal line (the marginal orbicularis oris rolls it in).
+
+    The lip's vertices (``region``) move by ``angle_rad · x̂ × (p − pivot)`` (a turn about +x by the
+    right-hand rule, linearised), weighted by a bump of ``radii_rel`` around the pivot; the pivot is
+    ``pivot_rel`` (y, z; × head height) from the ``anchor`` landmark on the midline. Rolling in is a
+    positive angle for the upper lip and a negative one for the lower.
+    """
+
+    name: str
+    channel: str
+    anchor: str
+    region: str
+    pivot_rel: tuple[float, float]
+    radii_rel: tuple[float, float, float]
+    angle_rad: float
+
+
+@dataclass(frozen=True)
+class Surface:
+    """What the action builders read of a rig: rest vertices and normals, skin, landmarks, regions."""
+
+    vertices: np.ndarray  # (n, 3) rig units
+    normals: np.ndarray  # (n, 3) unit
+    skin: np.ndarray  # (s,) int64, the vertices tissue actions may move
+    landmark: Callable[[str], np.ndarray]  # name -> (3,) rest position
+    landmarks: frozenset[str]
+    regions: dict[str, np.ndarray]
+    scale: float  # head height, rig units
+
+
+BUMPS: tuple[Bump, ...] = (
+    # (name, channel, anchor, centre_rel, radii_rel, slide_rel, bulge_rel[, sided]), see ``Bump``
+    # the upper face: the frontalis sheet, the brow depressors, the cheek raiser, the lower lid
+    # browInnerUp: the inner forehead rises with the brow
+    Bump(
+        "frontalis_sheet_inner",
+        "frontalis_inner",
+        "brow_inner_mid",
+        (-0.0514, -0.0016, -0.0199),
+        (0.15, 0.15, 0.0614),
+        (0.0101, 0.0124, 0.0163),
+        0.0105,
+    ),
+    # browOuterUp: the outer brow and the forehead above it rise
+    Bump(
+        "frontalis_sheet_outer",
+        "frontalis_outer",
+        "brow_outer_mid",
+        (-0.0058, 0.0125, -0.0334),
+        (0.15, 0.15, 0.15),
+        (0.034, 0.029, 0.0036),
+        0.0079,
+    ),
+    # browDown: the brow draws down, in and forward over the eye
+    Bump(
+        "corrugator_gather",
+        "corrugator",
+        "brow_inner_mid",
+        (0.1235, -0.0083, -0.1239),
+        (0.15, 0.15, 0.15),
+        (-0.0187, -0.0065, 0.0101),
+        0.0023,
+    ),
+    # cheekSquint (AU6): the cheek rises toward the eye
+    Bump(
+        "cheek_raise",
+        "orbicularis_oculi_outer",
+        "eye_outer_corner",
+        (0.0027, -0.1502, -0.0159),
+        (0.15, 0.15, 0.15),
+        (-0.0003, 0.0309, 0.031),
+        0.0119,
+    ),
+    # eyeSquint: the lower lid and the skin under it bunch up and in
+    Bump(
+        "lower_lid_squint",
+        "orbicularis_oculi",
+        "eye_lower_lid",
+        (-0.0013, -0.0576, -0.0049),
+        (0.15, 0.1054, 0.1434),
+        (-0.0392, 0.0193, -0.003),
+        -0.0008,
+    ),
+    # the mid face: the nose's side, the malar fat in a smile, the dimple, the cheek under pressure
+    # noseSneer: the side of the nose and the cheek beside it rise
+    Bump(
+        "nose_side_lift",
+        "levator_labii_nasal",
+        "alar_base",
+        (0.1248, 0.0398, -0.0059),
+        (0.15, 0.15, 0.15),
+        (0.0166, 0.0616, 0.0869),
+        0.0198,
+    ),
+    # mouthSmile: the malar fat piles up over the zygomatic major
+    Bump(
+        "malar_bulk",
+        "zygomatic_major",
+        "mouth_corner",
+        (0.084, 0.0226, -0.0121),
+        (0.15, 0.15, 0.15),
+        (0.0111, 0.0339, -0.0297),
+        -0.0041,
+    ),
+    # mouthDimple: the cheek beside the corner is drawn back and in
+    Bump(
+        "dimple",
+        "buccinator",
+        "mouth_corner",
+        (0.0236, -0.0758, 0.0015),
+        (0.1028, 0.1163, 0.15),
+        (-0.0316, 0.0362, -0.0407),
+        -0.0076,
+    ),
+    # cheekPuff: air pushes the cheek and the lips out
+    Bump(
+        "cheek_puff",
+        "cheek_puff",
+        "mouth_corner",
+        (0.0455, 0.0033, 0.0203),
+        (0.15, 0.15, 0.15),
+        (0.0025, 0.0095, 0.0633),
+        0.0228,
+    ),
+    Bump("nasalis", "nasalis", "alare", (-0.02, 0.04, 0.0), (0.035, 0.04, 0.04), (-0.006, 0.008, 0.0), 0.0),
+    # no captured shape: the nostril flares (~2 mm)
+    Bump(
+        "dilator_naris",
+        "dilator_naris",
+        "alare",
+        (0.0, 0.0, 0.0),
+        (0.03, 0.03, 0.03),
+        (0.01, 0.0, 0.0),
+        0.004,
+    ),
+    # the lips: sideways together, pushed out into a funnel, protruded in a pucker
+    # mouthLeft / mouthRight: the lips and corners slide sideways together
+    Bump(
+        "mouth_slide",
+        "mouth_slide",
+        "mouth_corner",
+        (-0.1472, 0.0005, 0.0009),
+        (0.15, 0.15, 0.15),
+        (0.0577, -0.0044, -0.0021),
+        -0.0056,
+    ),
+    # mouthFunnel: both lips pushed forward and out
+    Bump(
+        "lip_funnel",
+        "orbicularis_oris_peripheralis",
+        "upper_lip_inner",
+        (0.0, 0.0113, -0.0143),
+        (0.15, 0.1182, 0.15),
+        (0.0, 0.0046, 0.039),
+        0.0078,
+        sided=False,
+    ),
+    # mouthPucker: the closed lips pushed forward
+    Bump(
+        "lip_protrusion",
+        "orbicularis_oris",
+        "upper_lip_inner",
+        (0.0, 0.0011, -0.0512),
+        (0.15, 0.076, 0.1132),
+        (0.0, 0.0039, 0.051),
+        -0.0042,
+        sided=False,
+    ),
+)
+"""Every bump, calibrated (with the driving channel at 1, or 0.3 for the orbicularis oculi as ARKit's
+eyeSquint drives it) against the ICT-FaceKit shape named in its comment."""
+
+ROLLS: tuple[Roll, ...] = (
+    # mouthRollUpper: the lip rolls in over the teeth
+    Roll(
+        "lip_roll_upper",
+        "orbicularis_oris_marginalis_upper",
+        "upper_lip_top",
+        "upper_lip",
+        (0.0364, -0.0407),
+        (0.1047, 0.15, 0.1124),
+        1.3602,
+    ),
+    # mouthRollLower: the lip rolls in over the teeth
+    Roll(
+        "lip_roll_lower",
+        "orbicularis_oris_marginalis_lower",
+        "lower_lip_bottom",
+        "lower_lip",
+        (0.0298, -0.0396),
+        (0.15, 0.1294, 0.0587),
+        -1.6487,
+    ),
+)
+"""The lip rolls; see ``Roll``."""
+
+
+def _bump_weights(surface: Surface, centre: np.ndarray, radii_rel, ids: np.ndarray) -> tuple:
+    """Vertices (k,) among ``ids`` and weights (k,) in (0, 1] of the bump ``(1 − r²)²`` around ``centre``."""
+    r = (surface.vertices[ids] - centre) / (np.asarray(radii_rel, dtype=np.float64) * surface.scale)
+    r2 = np.einsum("kd,kd->k", r, r)
+    w = np.where(r2 < 1.0, (1.0 - np.minimum(r2, 1.0)) ** 2, 0.0)
+    keep = w > MIN_WEIGHT
+    return ids[keep], w[keep]
+
+
+def slide_onto(direction: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """``direction`` (3,) projected onto the tangent planes of ``normals`` (k, 3): (k, 3)."""
+    d = np.asarray(direction, dtype=np.float64)
+    return d[None, :] - (normals @ d)[:, None] * normals
+
+
+def _sides(sided: bool) -> tuple[tuple[str, float], ...]:
+    return (("_L", 1.0), ("_R", -1.0)) if sided else (("", 1.0),)
+
+
+def bump_actions(surface: Surface, bump: Bump, channels: Iterable[str]) -> list[Action]:
+    """The actions (one per side, or one) of ``bump`` on ``surface``, for the channels the rig has."""
+    channels, out = set(channels), []
+    for suffix, sx in _sides(bump.sided):
+        channel, anchor = bump.channel + suffix, bump.anchor + suffix
+        if channel not in channels or anchor not in surface.landmarks:
+            continue
+        mirror = np.array([sx, 1.0, 1.0])
+        centre = surface.landmark(anchor) + np.asarray(bump.centre_rel) * mirror * surface.scale
+        ids, w = _bump_weights(surface, centre, bump.radii_rel, surface.skin)
+        normals = surface.normals[ids]
+        field = slide_onto(np.asarray(bump.slide_rel) * mirror, normals) + bump.bulge_rel * normals
+        out.append(Action(bump.name + suffix, {channel: 1.0}, ids, w[:, None] * field))
+    return out
+
+
+def roll_actions(surface: Surface, roll: Roll, channels: Iterable[str]) -> list[Action]:
+    """The action of ``roll`` on ``surface`` (none if the rig lacks its channel, anchor or region)."""
+    if roll.channel not in set(channels) or roll.anchor not in surface.landmarks:
+        return []
+    lip = surface.regions.get(roll.region)
+    if lip is None or len(lip) == 0:
+        return []
+    pivot = surface.landmark(roll.anchor) + np.array([0.0, *roll.pivot_rel]) * surface.scale
+    ids, w = _bump_weights(surface, pivot, roll.radii_rel, np.intersect1d(lip, surface.skin))
+    arm = surface.vertices[ids] - pivot
+    turn = roll.angle_rad * np.cross([1.0, 0.0, 0.0], arm) / surface.scale  # × head height
+    return [Action(roll.name, {roll.channel: 1.0}, ids, w[:, None] * turn)]
+
+
+# --- the tongue: out, tip up, back (what lip sync needs for th, l, t/d and k/g) --------------------
+TONGUE_OUT_REL = 0.13
+"""How far the tip moves forward at full ``tongue_out``, × head height (past the lips when the jaw
+is open); the root stays, so the tongue stretches along its length."""
+TONGUE_OUT_DROP_REL = 0.015
+"""How far the protruded tip drops onto the lower lip, × head height."""
+TONGUE_NARROW = 0.3
+"""Share by which the protruded tip narrows (a stretched tongue gets thinner)."""
+TONGUE_TIP_UP_RAD = 1.0
+"""How far the front half turns up at full ``tongue_tip_up`` (toward the alveolar ridge), radians."""
+TONGUE_BACK_REL = 0.025
+"""How far the whole tongue draws back at full ``tongue_back``, × head height; its back rises by as
+much (it bunches toward the soft palate, as for k and g)."""
+
+
+def tongue_actions(surface: Surface, tongue: np.ndarray, channels: Iterable[str]) -> list[Action]:
+    """``tongue_out``, ``tongue_tip_up`` and ``tongue_back`` on the ``tongue`` vertices (k,).
+
+    Positions along the tongue run from its root (0, the back, smallest z) to its tip (1)."""
+    channels = set(channels)
+    tongue = np.asarray(tongue, dtype=np.int64)
+    if len(tongue) < 4:
+        return []
+    v = surface.vertices[tongue]
+    back, tip = float(v[:, 2].min()), float(v[:, 2].max())
+    t = (v[:, 2] - back) / max(tip - back, 1e-12)  # (k,) root 0 … tip 1
+    mid_x = float(np.median(v[:, 0]))
+    out = []
+    if "tongue_out" in channels:
+        reach = t**2
+        offsets = np.zeros_like(v)
+        offsets[:, 2] = TONGUE_OUT_REL * reach
+        offsets[:, 1] = -TONGUE_OUT_DROP_REL * reach
+        offsets[:, 0] = -TONGUE_NARROW * reach * (v[:, 0] - mid_x) / surface.scale
+        out.append(Action("tongue_out", {"tongue_out": 1.0}, tongue, offsets))
+    if "tongue_tip_up" in channels:
+        hinge = np.array([0.0, float(np.median(v[:, 1])), back + 0.5 * (tip - back)])
+        share = np.clip((t - 0.5) / 0.5, 0.0, 1.0) ** 2
+        arm = v - hinge
+        turn = np.cross([-1.0, 0.0, 0.0], arm) * TONGUE_TIP_UP_RAD  # tip forward of the hinge goes up
+        out.append(
+            Action("tongue_tip_up", {"tongue_tip_up": 1.0}, tongue, share[:, None] * turn / surface.scale)
+        )
+    if "tongue_back" in channels:
+        offsets = np.zeros_like(v)
+        offsets[:, 2] = -TONGUE_BACK_REL
+        offsets[:, 1] = TONGUE_BACK_REL * (1.0 - t)
+        out.append(Action("tongue_back", {"tongue_back": 1.0}, tongue, offsets))
+    return out
+
+
+CHANNELS: dict[str, tuple[str, str]] = {
+    **{
+        f"{name}_{side}": (group, doc)
+        for side in "LR"
+        for name, group, doc in (
+            ("cheek_puff", "cheeks", "air pressure puffs the cheek out against the relaxed buccinator"),
+            ("mouth_slide", "mouth", "the lips and modiolus slide together toward this side"),
+            ("nasalis", "nose", "the transverse nasalis wrinkles the side of the nose and draws it up"),
+            ("dilator_naris", "nose", "the alar nasalis flares the nostril"),
+        )
+    },
+    "orbicularis_oris_marginalis_upper": ("mouth", "the marginal orbicularis oris rolls the upper lip in"),
+    "orbicularis_oris_marginalis_lower": ("mouth", "the marginal orbicularis oris rolls the lower lip in"),
+    "orbicularis_oris_peripheralis": (
+        "mouth",
+        "the peripheral orbicularis oris pushes the lips out into a funnel",
+    ),
+    "tongue_out": ("tongue", "the genioglossus pushes the tongue out between the teeth"),
+    "tongue_tip_up": ("tongue", "the superior longitudinal muscle lifts the tip toward the alveolar ridge"),
+    "tongue_back": ("tongue", "the styloglossus draws the tongue back and up toward the soft palate"),
+}
+"""The channels only tissue actions drive: name -> (group, what it does). All run 0..1."""
+
+
+def find_actions(
+    vertices: np.ndarray,
+    normals: np.ndarray,
+    skin: np.ndarray,
+    tongue: np.ndarray,
+    landmark: Callable[[str], np.ndarray],
+    landmark_names: Iterable[str],
+    regions: dict[str, np.ndarray],
+    channel_names: Iterable[str],
+    scale: float,
+) -> tuple[Action, ...]:
+    """Every tissue action of a rig: ``BUMPS``, ``ROLLS`` and the tongue's, for the channels it has.
+
+    ``vertices``/``normals`` (n, 3) are the rest mesh (rig units); ``skin`` (s,) the vertices the
+    face's tissue actions may move, ``tongue`` (t,) the tongue's (may be empty); ``scale`` the head
+    height. Rigs without a channel, landmark or region an action needs simply lack that action.
+    """
+    channels = set(channel_names)
+    surface = Surface(
+        np.asarray(vertices, dtype=np.float64),
+        np.asarray(normals, dtype=np.float64),
+        np.asarray(skin, dtype=np.int64),
+        landmark,
+        frozenset(landmark_names),
+        {k: np.asarray(v, dtype=np.int64) for k, v in regions.items()},
+        float(scale),
+    )
+    out: list[Action] = []
+    for bump in BUMPS:
+        out += bump_actions(surface, bump, channels)
+    for roll in ROLLS:
+        out += roll_actions(surface, roll, channels)
+    out += tongue_actions(surface, tongue, channels)
+    return tuple(a for a in out if len(a.vertices))

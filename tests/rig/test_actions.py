@@ -1,0 +1,160 @@
+"""Tests for mimetic.rig.anatomy.actions: tissue actions placed from landmarks, mirrored, scaled."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mimetic.mesh.geometry import vertex_normals
+from mimetic.rig.anatomy.actions import (
+    BUMPS,
+    CHANNELS,
+    ROLLS,
+    TONGUE_OUT_REL,
+    Bump,
+    Roll,
+    Surface,
+    bump_actions,
+    find_actions,
+    roll_actions,
+    tongue_actions,
+)
+from mimetic.rig.recipe import build_rig
+from mimetic.testing import head_with
+
+
+@pytest.fixture(scope="module")
+def head():
+    return head_with()
+
+
+@pytest.fixture(scope="module")
+def rig(head):
+    return build_rig(head)
+
+
+def _actions(rig, scale_by: float = 1.0, channels=None):
+    mesh = rig.mesh
+    v = mesh.vertices * scale_by
+    tongue = mesh.part_vertices("tongue") if "tongue" in mesh.parts else np.zeros(0, np.int64)
+    return find_actions(
+        v,
+        vertex_normals(v, mesh.faces[mesh.parts["skin"]]),
+        mesh.part_vertices("skin"),
+        tongue,
+        lambda name: rig.landmarks[name].position(v, mesh.faces),
+        rig.landmarks,
+        dict(rig.regions),
+        rig.channel_names if channels is None else channels,
+        rig.scale * scale_by,
+    )
+
+
+def _surface(rig) -> Surface:
+    v, f = rig.mesh.vertices, rig.mesh.faces
+    return Surface(
+        v,
+        vertex_normals(v, f[rig.mesh.parts["skin"]]),
+        rig.mesh.part_vertices("skin"),
+        lambda name: rig.landmarks[name].position(v, f),
+        frozenset(rig.landmarks),
+        {k: np.asarray(ids) for k, ids in rig.regions.items()},
+        rig.scale,
+    )
+
+
+def test_find_actions_every_channel_of_the_table_drives_an_action(rig):
+    driven = {c for a in _actions(rig) for c in a.gains}
+    assert set(CHANNELS) <= set(rig.channel_names)
+    assert set(CHANNELS) - {"nasalis_L", "nasalis_R", "dilator_naris_L", "dilator_naris_R"} <= driven
+    assert {b.channel + s for b in BUMPS for s in (("_L", "_R") if b.sided else ("",))} <= driven
+    assert {r.channel for r in ROLLS} <= driven
+
+
+def test_find_actions_sided_actions_mirror_each_other_on_a_symmetric_head(head, rig):
+    actions = {a.name: a for a in _actions(rig)}
+    flip = np.array([-1.0, 1.0, 1.0])
+    pairs = [n[:-2] for n in actions if n.endswith("_L")]
+    assert len(pairs) >= 8
+    for stem in pairs:
+        left, right = actions[stem + "_L"], actions[stem + "_R"]
+        order_l = np.argsort(head.mirror[left.vertices])
+        order_r = np.argsort(right.vertices)
+        np.testing.assert_array_equal(head.mirror[left.vertices][order_l], right.vertices[order_r])
+        np.testing.assert_allclose(left.offsets_rel[order_l] * flip, right.offsets_rel[order_r], atol=1e-12)
+
+
+def test_find_actions_fields_are_relative_to_the_head_height(rig):
+    """The same head in millimetres gets the same actions: offsets are fractions of its height."""
+    cm, mm = _actions(rig), _actions(rig, scale_by=10.0)
+    assert [a.name for a in cm] == [a.name for a in mm]
+    for a, b in zip(cm, mm, strict=True):
+        np.testing.assert_array_equal(a.vertices, b.vertices)
+        np.testing.assert_allclose(a.offsets_rel, b.offsets_rel, rtol=1e-9, atol=1e-12)
+
+
+def test_find_actions_without_a_channel_or_landmark_leaves_that_action_out(rig):
+    channels = [c for c in rig.channel_names if c != "cheek_puff_L"]
+    names = {a.name for a in _actions(rig, channels=channels)}
+    assert "cheek_puff_R" in names and "cheek_puff_L" not in names
+    surface = _surface(rig)
+    lost = Bump("x", "cheek_puff", "no_such_landmark", (0, 0, 0), (0.1, 0.1, 0.1), (0, 0.01, 0), 0.0)
+    assert bump_actions(surface, lost, rig.channel_names) == []
+
+
+def test_bump_actions_slide_along_the_surface_and_bulge_along_the_normal(rig):
+    surface = _surface(rig)
+    slide = Bump("s", "cheek_puff", "mouth_corner", (0.04, 0, 0), (0.1, 0.1, 0.1), (0.0, 0.02, 0.0), 0.0)
+    bulge = Bump("b", "cheek_puff", "mouth_corner", (0.04, 0, 0), (0.1, 0.1, 0.1), (0.0, 0.0, 0.0), 0.01)
+    (s,), (b,) = (bump_actions(surface, x, {"cheek_puff_L"}) for x in (slide, bulge))
+    n = surface.normals[s.vertices]
+    assert np.abs(np.einsum("kd,kd->k", s.offsets_rel, n)).max() < 1e-12  # tangent
+    centre = surface.landmark("mouth_corner_L") + np.array([0.04, 0.0, 0.0]) * rig.scale
+    r = (surface.vertices[s.vertices] - centre) / (0.1 * rig.scale)
+    w = (1.0 - np.einsum("kd,kd->k", r, r)) ** 2
+    up = np.array([0.0, 0.02, 0.0])
+    np.testing.assert_allclose(s.offsets_rel, w[:, None] * (up - (n @ up)[:, None] * n), atol=1e-12)
+    along = np.einsum("kd,kd->k", b.offsets_rel, surface.normals[b.vertices])
+    np.testing.assert_allclose(np.linalg.norm(b.offsets_rel, axis=1), along, atol=1e-12)  # along the normal
+    assert along.max() <= 0.01 + 1e-12 and along.max() > 0.008
+
+
+def test_roll_actions_turn_the_lip_about_its_pivot(rig):
+    surface = _surface(rig)
+    roll = Roll(
+        "r",
+        "orbicularis_oris_marginalis_upper",
+        "upper_lip_top",
+        "upper_lip",
+        (0.0, -0.03),
+        (0.1, 0.05, 0.06),
+        0.5,
+    )
+    (a,) = roll_actions(surface, roll, rig.channel_names)
+    assert set(a.vertices) <= set(rig.regions["upper_lip"])
+    pivot = surface.landmark("upper_lip_top") + np.array([0.0, 0.0, -0.03]) * rig.scale
+    arm = surface.vertices[a.vertices] - pivot
+    d = a.offsets_rel * rig.scale
+    assert np.abs(d[:, 0]).max() < 1e-12  # about the x axis
+    assert np.abs(np.einsum("kd,kd->k", d, arm)).max() < 1e-9  # perpendicular to the arm: a turn
+    r = arm / (np.array(roll.radii_rel) * rig.scale)
+    w = (1.0 - np.einsum("kd,kd->k", r, r)) ** 2  # the bump's weight
+    expected = 0.5 * w * np.linalg.norm(arm[:, 1:], axis=1)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), expected, rtol=1e-9)
+
+
+def test_tongue_actions_out_moves_the_tip_forward_and_keeps_the_root(rig):
+    surface = _surface(rig)
+    tongue = rig.mesh.part_vertices("tongue")
+    actions = {a.name: a for a in tongue_actions(surface, tongue, rig.channel_names)}
+    assert set(actions) == {"tongue_out", "tongue_tip_up", "tongue_back"}
+    z = surface.vertices[tongue, 2]
+    out = actions["tongue_out"].offsets_rel
+    tip, root = np.argmax(z), np.argmin(z)
+    assert out[tip, 2] == pytest.approx(TONGUE_OUT_REL)
+    assert np.linalg.norm(out[root]) < 1e-12
+    up = actions["tongue_tip_up"].offsets_rel
+    assert up[tip, 1] > 0 and np.linalg.norm(up[root]) < 1e-12
+    back = actions["tongue_back"].offsets_rel
+    assert (back[:, 2] < 0).all()
+    assert tongue_actions(surface, np.zeros(0, np.int64), rig.channel_names) == []
