@@ -52,6 +52,7 @@ import scipy.sparse as sp
 
 from mimetic.engines.common import Chain, deformable_vertices, muscle_frame, muscle_mask
 from mimetic.mesh.geometry import smooth_field
+from mimetic.mesh.weld import find_weld
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Muscle, Rig
 
@@ -108,7 +109,8 @@ def lip_holds(rig: Rig) -> dict[str, np.ndarray]:
     For ``upper_lip`` and ``lower_lip``: the region's indicator diffused by ``LIP_BLEND_REL *
     rig.scale`` (``mesh.geometry.smooth_field``) over the outer skin (the ``skin`` part, else every
     deformable face), then over the rest of the deformable surface (the mouth cavity) with the outer
-    skin's values held, times ``_corner_ramp`` of each vertex (0 at the mouth corners). The outer skin
+    skin's values held, times ``_corner_ramp`` of each vertex (0 at the mouth corners); on the surface
+    with its unwelded seams merged (``mesh.weld.find_weld``), so coincident copies hold alike. The outer skin
     comes first so that its holds do not depend on the cavity's triangulation (a generated head's
     cavity is mirror-symmetric in its positions, not in its triangles). Empty when the rig lacks
     either region.
@@ -116,22 +118,23 @@ def lip_holds(rig: Rig) -> dict[str, np.ndarray]:
     upper, lower = rig.regions.get("upper_lip"), rig.regions.get("lower_lip")
     if upper is None or lower is None or not len(upper) or not len(lower):
         return {}
-    v, f = rig.mesh.vertices, rig.mesh.faces
-    n = rig.n_vertices
-    deformable = np.zeros(n, dtype=bool)
-    deformable[deformable_vertices(rig)] = True
-    surface = f[deformable[f].all(axis=1)]  # (k, 3) every deformable face
+    weld = find_weld(rig.mesh)  # diffused across unwelded seams, so copies of a vertex hold alike
+    k = len(weld.first)
+    v, f = rig.mesh.vertices[weld.first], weld.index[rig.mesh.faces]  # (k, 3), (m, 3) welded
+    deformable = np.zeros(k, dtype=bool)
+    deformable[weld.index[deformable_vertices(rig)]] = True
+    surface = f[deformable[f].all(axis=1)]  # every deformable face
     outer = f[rig.mesh.parts["skin"]] if "skin" in rig.mesh.parts else surface
-    inside = np.zeros((n, 2))
-    inside[upper, 0] = 1.0
-    inside[lower, 1] = 1.0
+    inside = np.zeros((k, 2))
+    inside[weld.index[upper], 0] = 1.0
+    inside[weld.index[lower], 1] = 1.0
     length = LIP_BLEND_REL * rig.scale
-    spread = smooth_field(inside, v, outer, length)  # (n, 2)
+    spread = smooth_field(inside, v, outer, length)  # (k, 2)
     rest = deformable.copy()
     rest[outer.ravel()] = False  # the cavity: diffused with the outer skin's values as its boundary
     if rest.any():
         spread = smooth_field(spread, v, surface, length, free=rest)
-    held = np.clip(spread, 0.0, 1.0) * _corner_ramp(rig, v)[:, None]
+    held = np.clip(spread[weld.index], 0.0, 1.0) * _corner_ramp(rig, rig.mesh.vertices)[:, None]
     return {"upper_lip": held[:, 0], "lower_lip": held[:, 1]}
 
 
