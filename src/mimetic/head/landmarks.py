@@ -188,12 +188,19 @@ def skin_landmarks(topo: HeadTopology, mesh: Mesh, pieces: Mapping[str, Mesh]) -
     both_sides("alar_base", nearest(front, np.array([1.25, sn + 0.15]), chart))
     both_sides("alare", nearest(front, np.array([1.85, sn + 0.6]), chart))
 
-    # chin: pogonion = most anterior midline chin point; menton = 45° down-forward normal. The
-    # mouth's skin rings reach down onto the chin, so their midline column counts as midline too.
+    # chin: pogonion = the chin's most prominent midline point seen from in front and 25° below (the
+    # lower face slopes back, so the plain most anterior point sits high, at the mentolabial
+    # bulge); the mouth's skin rings reach down onto the chin, so their midline column counts as
+    # midline. menton = the point facing 45° down-forward on the chin's convex curve below it
+    # (the concave angle where the chin meets the neck faces that way too, so points more than
+    # 2.5 cm behind the pogonion are left out)
     m_skin = topo.mouth.index[topo.mouth.u > 1.0][:, 3 * topo.mouth.index.shape[1] // 4]
     midline = np.concatenate([meridian, m_skin])
     chin = midline[(v[midline, 1] < -9.0) & (v[midline, 2] > 3.0)]
-    out["pogonion"] = int(chin[np.argmax(v[chin, 2])])
+    view = np.radians(25.0)
+    out["pogonion"] = int(chin[np.argmax(v[chin, 2] * np.cos(view) - v[chin, 1] * np.sin(view))])
+    pog = v[out["pogonion"]]
+    chin = chin[(v[chin, 1] < pog[1] - 0.3) & (v[chin, 2] > pog[2] - 2.5)]
     want = np.array([0.0, -np.sqrt(0.5), np.sqrt(0.5)])
     out["menton"] = int(chin[np.argmax(normals[chin] @ want)])
 
