@@ -125,7 +125,7 @@ class _Recorder:
     def __init__(self) -> None:
         self.vertices: list[np.ndarray] = []
 
-    def render(self, mesh, camera, *, size):
+    def render(self, mesh, camera, *, size, look=None):
         self.vertices.append(mesh.vertices.copy())
         return np.full((size[1], size[0], 3), 128, np.uint8)
 
