@@ -1,7 +1,7 @@
 """Benchmark motion quality (issue 11, "Faces that move like faces"): stretch at the ICT-matched jaw drop,
 lips, lids and expression fidelity, per head and engine.
 
-    python benchmarks/bench_quality.py [--quick]
+    python benchmarks/bench_quality.py [--quick] [--tables abc|de]
 
 The definitions are ``mimetic.quality``'s (its module docstring); this script only builds the heads,
 poses them and prints. Lengths are in cm (every head here is in cm).
@@ -582,6 +582,11 @@ def tables_de(heads: Heads, quick: bool) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer heads (for CI and every change)")
+    parser.add_argument(
+        "--tables",
+        default="abcde",
+        help="which tables to print: 'abc' (jaw, lips, lids; fast) and/or 'de' (fidelity; slow); default all",
+    )
     args = parser.parse_args()
     begin = time.perf_counter()
     print(
@@ -615,8 +620,9 @@ def main() -> None:
             for c in cases
         ],
     )
-    tables_abc(cases, heads.jaw_reference())
-    if heads.has_ict:
+    if set("abc") & set(args.tables):
+        tables_abc(cases, heads.jaw_reference())
+    if heads.has_ict and set("de") & set(args.tables):
         tables_de(heads, args.quick)
     print(f"\nbenchmark wall time {time.perf_counter() - begin:.0f} s")
 
