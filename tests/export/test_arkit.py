@@ -20,6 +20,7 @@ from mimetic.animate.arkit import (
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.export.arkit import arkit_shapes, arkit_weights, prepare_arkit_fit, side_weights
+from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import surface_positions
 from mimetic.testing import require_shared_data, small_rig
 
@@ -268,3 +269,26 @@ def test_bake_on_the_ict_head_moves_like_icts_own_shapes(ict, name):
     if name.endswith("_L"):  # the subject's left in both: the other side's shape barely correlates
         other = name[:-1] + "R"
         assert _cosine(ours[name], theirs[name]) > _cosine(ours[name], theirs[other]) + 0.3
+
+
+def test_tissue_shapes_move_what_their_names_say(rig, shapes):
+    """cheekPuff, tongueOut, mouthRoll*, mouthFunnel and mouthLeft are made by the tissue actions'
+    channels (they were stand-ins that did not move before): each moves its own tissue."""
+    v, s = rig.mesh.vertices, rig.scale
+    tongue = rig.mesh.part_vertices("tongue")
+    assert shapes["tongueOut"][tongue, 2].max() > 0.05 * s  # the tip comes forward by over 1 cm
+    assert np.abs(shapes["tongueOut"][rig.regions["forehead"]]).max() == 0.0
+    out = (shapes["cheekPuff"] * vertex_normals(v, rig.mesh.faces)).sum(axis=1)  # (n,) outward
+    for side, sign in (("L", 1), ("R", -1)):
+        cheek = np.flatnonzero(sign * v[:, 0] > 0.05 * s)  # the side of the face beyond the mouth
+        assert out[cheek].max() > 0.01 * s, side  # puffed out by over 2 mm
+
+    def at(vertices: np.ndarray, name: str) -> np.ndarray:
+        return surface_positions([rig.landmarks[name]], vertices, rig.mesh.faces)[0]
+
+    # the lips turn in over the teeth: the upper lip's edge goes back, the lower lip's up under it
+    upper = at(v + shapes["mouthRollUpper"], "upper_lip_inner") - at(v, "upper_lip_inner")
+    lower = at(v + shapes["mouthRollLower"], "lower_lip_inner") - at(v, "lower_lip_inner")
+    assert upper[2] < -0.02 * s and lower[1] > 0.005 * s and lower[2] <= 0.0, (upper, lower)
+    for lip in ("upper_lip_top", "lower_lip_bottom"):  # the lips slide to the subject's left
+        assert at(v + shapes["mouthLeft"], lip)[0] - at(v, lip)[0] > 0.01 * s, lip
