@@ -11,11 +11,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from mimetic.mesh.geometry import vertex_normals
+from mimetic.mesh.geometry import smooth_field, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint
 from mimetic.mesh.weld import find_weld
 from mimetic.rig.anatomy.accessories import Accessories, find_accessories
-from mimetic.rig.anatomy.actions import Action, find_actions
+from mimetic.rig.anatomy.actions import MIN_WEIGHT, Action, find_actions
 from mimetic.rig.anatomy.creases import Crease, find_creases
 from mimetic.rig.anatomy.lids import LidContact, find_lid_contacts
 from mimetic.rig.anatomy.lips import lip_contact
@@ -24,6 +24,11 @@ from mimetic.rig.anatomy.tissue import tissue_thickness
 
 SKIN_PARTS = ("skin", "mouth")
 """The deformable surface: the parts muscles, creases and tissue act on (others follow bones)."""
+CAVITY_REACH_REL = 0.02
+"""Tissue actions carry on from the lips into the mouth cavity over this × the head height (4 mm)."""
+NORMAL_SMOOTHING_REL = 0.02
+"""Tissue actions slide and bulge along the skin's normals smoothed over this × the head height (4 mm)."""
+"""Tissue actions carry on from the lips into the mouth cavity over this × the head height (4 mm)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,18 +112,62 @@ def _anatomy(
         accessories=find_accessories(mesh, scale, skin_weights),
         thickness_rel=tissue_thickness(v, skin_faces, skin, regions, scale),
         lids=find_lid_contacts(v, f, mesh.parts, regions, corners),
-        actions=find_actions(  # on the skin alone: a mouth cavity's own normals do not tilt the lips'
+        actions=_into_cavity(
+            find_actions(
+                v,
+                _tissue_normals(v, f[mesh.parts["skin"]] if "skin" in mesh.parts else f, scale),
+                crease_skin,
+                mesh.part_vertices("tongue") if "tongue" in mesh.parts else np.zeros(0, np.int64),
+                landmark,
+                set(landmarks),
+                dict(regions),
+                channel_names,
+                scale,
+            ),
             v,
-            vertex_normals(v, f[mesh.parts["skin"]]) if "skin" in mesh.parts else normals,
-            crease_skin,
-            mesh.part_vertices("tongue") if "tongue" in mesh.parts else np.zeros(0, np.int64),
-            landmark,
-            set(landmarks),
-            dict(regions),
-            channel_names,
-            scale,
+            skin_faces,
+            np.setdiff1d(skin, crease_skin),
+            CAVITY_REACH_REL * scale,
         ),
     )
+
+
+def _tissue_normals(vertices: np.ndarray, faces: np.ndarray, scale: float) -> np.ndarray:
+    """Unit normals (n, 3) of the skin (``faces``: the skin part alone, so a mouth cavity's own normals
+    do not tilt the lips') smoothed over ``NORMAL_SMOOTHING_REL`` of the head height: tissue moves as
+    a mass, so where the lips fold into the mouth both sides of the fold slide and bulge alike
+    instead of toward each other."""
+    smooth = smooth_field(vertex_normals(vertices, faces), vertices, faces, NORMAL_SMOOTHING_REL * scale)
+    size = np.linalg.norm(smooth, axis=1, keepdims=True)
+    return np.divide(smooth, size, out=np.zeros_like(smooth), where=size > 1e-12)
+
+
+def _into_cavity(
+    actions: tuple[Action, ...], vertices: np.ndarray, faces: np.ndarray, cavity: np.ndarray, length: float
+) -> tuple[Action, ...]:
+    """``actions`` carried on from the skin into the mouth cavity: each field diffused over ``faces``
+    (the deformable surface) by ``length`` into the ``cavity`` vertices (c,), with its skin offsets
+    held, so the cavity's rim moves with the lip it continues and the mouth does not open at the
+    seam between them (a cheek puff tore the default head's mouth corner open there)."""
+    if not actions or not len(cavity):
+        return actions
+    n = len(vertices)
+    field = np.zeros((n, 3 * len(actions)))
+    for k, action in enumerate(actions):
+        field[action.vertices, 3 * k : 3 * k + 3] = action.offsets_rel
+    free = np.zeros(n, dtype=bool)
+    free[cavity] = True
+    spread = smooth_field(field, vertices, faces, length, free=free)
+    out = []
+    for k, action in enumerate(actions):
+        inside = spread[cavity, 3 * k : 3 * k + 3]  # (c, 3)
+        size = np.linalg.norm(action.offsets_rel, axis=1).max(initial=0.0)
+        keep = np.linalg.norm(inside, axis=1) > MIN_WEIGHT * size
+        ids = np.concatenate([action.vertices, cavity[keep]])
+        offsets = np.concatenate([action.offsets_rel, inside[keep]])
+        order = np.argsort(ids, kind="stable")
+        out.append(replace(action, vertices=ids[order], offsets_rel=offsets[order]))
+    return tuple(out)
 
 
 def derive_anatomy(
