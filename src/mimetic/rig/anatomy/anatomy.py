@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from mimetic.mesh.geometry import smooth_field, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint
@@ -24,8 +25,8 @@ from mimetic.rig.anatomy.tissue import tissue_thickness
 
 SKIN_PARTS = ("skin", "mouth")
 """The deformable surface: the parts muscles, creases and tissue act on (others follow bones)."""
-CAVITY_REACH_REL = 0.02
-"""Tissue actions carry on from the lips into the mouth cavity over this × the head height (4 mm)."""
+CAVITY_REACH_REL = 0.03
+"""Tissue actions carry on from the lips into the mouth cavity over this × the head height (6 mm)."""
 NORMAL_SMOOTHING_REL = 0.02
 """Tissue actions slide and bulge along the skin's normals smoothed over this × the head height (4 mm)."""
 """Tissue actions carry on from the lips into the mouth cavity over this × the head height (4 mm)."""
@@ -145,28 +146,38 @@ def _tissue_normals(vertices: np.ndarray, faces: np.ndarray, scale: float) -> np
 def _into_cavity(
     actions: tuple[Action, ...], vertices: np.ndarray, faces: np.ndarray, cavity: np.ndarray, length: float
 ) -> tuple[Action, ...]:
-    """``actions`` carried on from the skin into the mouth cavity: each field diffused over ``faces``
-    (the deformable surface) by ``length`` into the ``cavity`` vertices (c,), with its skin offsets
-    held, so the cavity's rim moves with the lip it continues and the mouth does not open at the
-    seam between them (a cheek puff tore the default head's mouth corner open there)."""
+    """``actions`` carried on from the skin into the mouth cavity (``cavity`` (c,) vertices), so the
+    cavity's rim moves with the lip it continues and the mouth does not open at the seam between them
+    (a cheek puff tore the default head's mouth corner open there).
+
+    Each cavity vertex within ``length`` of the seam (the skin vertices of ``faces`` that share a face
+    with the cavity) takes the offset of its nearest seam vertex times the falloff ``(1 − (d /
+    length)²)²``. By distance, not over the cavity's triangles, which need not be mirror-symmetric
+    where the head is."""
     if not actions or not len(cavity):
         return actions
-    n = len(vertices)
-    field = np.zeros((n, 3 * len(actions)))
-    for k, action in enumerate(actions):
-        field[action.vertices, 3 * k : 3 * k + 3] = action.offsets_rel
-    free = np.zeros(n, dtype=bool)
-    free[cavity] = True
-    spread = smooth_field(field, vertices, faces, length, free=free)
+    inside = np.zeros(len(vertices), dtype=bool)
+    inside[cavity] = True
+    touching = faces[inside[faces].any(axis=1)].ravel()
+    seam = np.unique(touching[~inside[touching]])
+    if not len(seam):
+        return actions
+    dist, nearest = cKDTree(vertices[seam]).query(vertices[cavity])
+    near = dist < length
+    ids, source = cavity[near], seam[nearest[near]]
+    fall = (1.0 - (dist[near] / length) ** 2) ** 2  # (m,)
     out = []
-    for k, action in enumerate(actions):
-        inside = spread[cavity, 3 * k : 3 * k + 3]  # (c, 3)
+    for action in actions:
+        row = np.full(len(vertices), -1)
+        row[action.vertices] = np.arange(len(action.vertices))
+        moved = row[source] >= 0
+        carried = action.offsets_rel[row[source[moved]]] * fall[moved, None]
         size = np.linalg.norm(action.offsets_rel, axis=1).max(initial=0.0)
-        keep = np.linalg.norm(inside, axis=1) > MIN_WEIGHT * size
-        ids = np.concatenate([action.vertices, cavity[keep]])
-        offsets = np.concatenate([action.offsets_rel, inside[keep]])
-        order = np.argsort(ids, kind="stable")
-        out.append(replace(action, vertices=ids[order], offsets_rel=offsets[order]))
+        keep = np.linalg.norm(carried, axis=1) > MIN_WEIGHT * size
+        all_ids = np.concatenate([action.vertices, ids[moved][keep]])
+        offsets = np.concatenate([action.offsets_rel, carried[keep]])
+        order = np.argsort(all_ids, kind="stable")
+        out.append(replace(action, vertices=all_ids[order], offsets_rel=offsets[order]))
     return tuple(out)
 
 
