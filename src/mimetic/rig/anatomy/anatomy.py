@@ -101,6 +101,7 @@ def _anatomy(
 
     normals = vertex_normals(v, f)
     crease_skin = mesh.part_vertices("skin") if "skin" in mesh.parts else skin
+    lips = lip_contact(v, regions, scale)
     corners = {
         side: np.stack([landmark(f"eye_inner_corner_{side}"), landmark(f"eye_outer_corner_{side}")])
         for side in ("L", "R")
@@ -109,14 +110,14 @@ def _anatomy(
     return Anatomy(
         creases=find_creases(v, normals, crease_skin, landmark, set(landmarks), channel_names, scale),
         skull=forehead_skull(v, regions, scale),
-        lip_contact=lip_contact(v, regions, scale),
+        lip_contact=lips,
         accessories=find_accessories(mesh, scale, skin_weights),
         thickness_rel=tissue_thickness(v, skin_faces, skin, regions, scale),
         lids=find_lid_contacts(v, f, mesh.parts, regions, corners),
         actions=_into_cavity(
             find_actions(
                 v,
-                _tissue_normals(v, f[mesh.parts["skin"]] if "skin" in mesh.parts else f, scale),
+                _tissue_normals(v, f[mesh.parts["skin"]] if "skin" in mesh.parts else f, lips, scale),
                 crease_skin,
                 mesh.part_vertices("tongue") if "tongue" in mesh.parts else np.zeros(0, np.int64),
                 landmark,
@@ -133,12 +134,20 @@ def _anatomy(
     )
 
 
-def _tissue_normals(vertices: np.ndarray, faces: np.ndarray, scale: float) -> np.ndarray:
-    """Unit normals (n, 3) of the skin (``faces``: the skin part alone, so a mouth cavity's own normals
-    do not tilt the lips') smoothed over ``NORMAL_SMOOTHING_REL`` of the head height: tissue moves as
-    a mass, so where the lips fold into the mouth both sides of the fold slide and bulge alike
-    instead of toward each other."""
-    smooth = smooth_field(vertex_normals(vertices, faces), vertices, faces, NORMAL_SMOOTHING_REL * scale)
+def _tissue_normals(vertices: np.ndarray, faces: np.ndarray, lips: np.ndarray, scale: float) -> np.ndarray:
+    """Unit normals (n, 3) of the skin for the tissue actions: tissue moves as a mass, so its normals
+    are those of the skin with the lips closed (each lip-contact pair ``lips`` (k, 2) one vertex) and
+    smoothed over ``NORMAL_SMOOTHING_REL`` of the head height. Where the lips fold into the mouth the
+    two lips then slide and bulge alike instead of toward each other and across the lip line.
+    ``faces``: the skin part alone, so a mouth cavity's own normals do not tilt the lips'."""
+    one = np.arange(len(vertices))
+    one[lips[:, 1]] = lips[:, 0]  # the lower lip's contact vertices become their upper partners
+    closed = one[faces]
+    closed = closed[
+        (closed[:, 0] != closed[:, 1]) & (closed[:, 1] != closed[:, 2]) & (closed[:, 0] != closed[:, 2])
+    ]
+    smooth = smooth_field(vertex_normals(vertices, closed), vertices, closed, NORMAL_SMOOTHING_REL * scale)
+    smooth[lips[:, 1]] = smooth[lips[:, 0]]
     size = np.linalg.norm(smooth, axis=1, keepdims=True)
     return np.divide(smooth, size, out=np.zeros_like(smooth), where=size > 1e-12)
 
