@@ -78,12 +78,14 @@ class EyeContact:
     bridge: float  # rig units along u: the widest dip of the lower margin the upper lid bridges
 
 
-def _turn(d: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Vectors ``d`` (k, 3) turned by ``angle`` (k,) rad about the unit ``axis`` (3,) (Rodrigues)."""
-    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``angle (k,) -> d turned by angle``: vectors ``d`` (k, 3) turned about the unit ``axis`` (3,) by
+    Rodrigues' formula, its angle-free parts computed once (a contact's search turns them often)."""
+    along = np.outer(d @ axis, axis)
+    across = d - along
     x, y, z = axis
     cross = np.column_stack([y * d[:, 2] - z * d[:, 1], z * d[:, 0] - x * d[:, 2], x * d[:, 1] - y * d[:, 0]])
-    return d * c + cross * s + np.outer(d @ axis, axis) * (1.0 - c)
+    return lambda angle: along + across * np.cos(angle)[:, None] + cross * np.sin(angle)[:, None]
 
 
 def _lower_line(points: np.ndarray, span: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -218,14 +220,16 @@ def keep_lids_apart(
             arm = (before[ids] - eye.pivot) @ turn.T  # R q: the lid's full swing of each vertex
             base = out[ids]
 
-            def place(delta: np.ndarray, base=base, w=w, arm=arm) -> np.ndarray:
-                return base + w[:, None] * (_turn(arm, axis, -delta) - arm)
+            start, swing = base - w[:, None] * arm, _turner(arm, axis)
+
+            def place(delta: np.ndarray, start=start, w=w, swing=swing) -> np.ndarray:
+                return start + w[:, None] * swing(-delta)
 
         else:
-            arm = out[ids] - pivot
+            swing = _turner(out[ids] - pivot, axis)
 
-            def place(delta: np.ndarray, arm=arm) -> np.ndarray:
-                return pivot + _turn(arm, axis, -delta)
+            def place(delta: np.ndarray, swing=swing) -> np.ndarray:
+                return pivot + swing(-delta)
 
         def above(delta: np.ndarray, place=place, floor=floor, line=line) -> np.ndarray:
             return _clearance(frame(place(delta)), line, beyond=not columns) - floor
@@ -246,7 +250,7 @@ def keep_lids_apart(
         ids = eye.followers[moving]
         arm = (before[ids] - eye.pivot) @ turn.T
         out = out.copy()
-        out[ids] += eye.follower_weight[moving, None] * (_turn(arm, axis, -field[moving]) - arm)
+        out[ids] += eye.follower_weight[moving, None] * (_turner(arm, axis)(-field[moving]) - arm)
     return out
 
 
