@@ -894,7 +894,7 @@ def demo(
 
     \b
       mimetic demo
-      mimetic demo -o /tmp/demo --resolution 4000
+      mimetic demo -o demo-small --resolution 4000
     """
     from mimetic.demo import run_demo
 

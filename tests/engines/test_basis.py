@@ -263,9 +263,15 @@ def test_evaluate_basis_layout_skips_the_terms_that_do_not_move_a_block(monkeypa
     evaluate_basis(basis, np.zeros(N_CHANNELS), dtype=np.float32)
     layout = basis._layout32
     columns = layout.gather.tolist()  # column j + 1 of [1, t] is channel j
-    assert 1 + 1 not in columns  # channel 1 moves nothing: no block holds it
-    assert columns.count(1 + 2) == 1  # channel 2 moves one vertex: one block
-    assert columns.count(1 + 0) == len(layout.blocks) == columns.count(0)  # every block: channel 0, neutral
+
+    def column(channel: int) -> int:
+        return channel + 1
+
+    assert column(1) not in columns  # channel 1 moves nothing: no block holds it
+    assert columns.count(column(2)) == 1  # channel 2 moves one vertex: one block
+    assert (
+        columns.count(column(0)) == len(layout.blocks) == columns.count(0)
+    )  # every block: channel 0, neutral
     stored = sum(matrix.size for *_, matrix in layout.blocks)
     assert stored < (1 + N_CHANNELS) * 3 * basis.n_vertices
     assert basis._layout32 is layout  # built once, cached
