@@ -66,8 +66,9 @@ import numpy as np
 
 from mimetic.engines.basis import Basis
 from mimetic.errors import MimeticWarning
-from mimetic.mesh.geometry import boundary_edges, connected_components, edges_unique, face_normals
+from mimetic.mesh.geometry import connected_components, edges_unique, face_normals
 from mimetic.mesh.model import SurfacePoint
+from mimetic.rig.anatomy.lids import eye_frame, gaze_rim
 from mimetic.rig.model import Channel, Rig
 
 log = logging.getLogger(__name__)
@@ -417,37 +418,12 @@ class LidMargins:
 
 
 def _eye_frame(rig: Rig, side: str) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-    """Origin (inner corner), axes (3, 3) rows u, v, w, corner distance and the eyeball centre."""
+    """Origin (inner corner), axes (3, 3) rows u, v, w, corner distance and the eyeball centre: the
+    frame the rig's lid contact uses (``mimetic.rig.anatomy.lids.eye_frame``)."""
     inner, outer = rig.landmark_positions([f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"])
-    width = float(np.linalg.norm(outer - inner))
-    u = (outer - inner) / width
     eye = rig.bone(f"eye_{side}")
-    gaze = eye.tail - eye.head
-    if np.linalg.norm(gaze - gaze.dot(u) * u) < 1e-9 * width:  # degenerate bone: look down +Z
-        gaze = np.array([0.0, 0.0, 1.0])
-    w = gaze - gaze.dot(u) * u
-    w /= np.linalg.norm(w)
-    v = np.cross(w, u)
-    if v[1] < 0:
-        v = -v
-    return inner, np.stack([u, v, w]), width, np.asarray(eye.head, dtype=np.float64)
-
-
-def _gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.ndarray:
-    """Vertices (n,) bool where the surface, seen along ``gaze`` (3,), ends or turns away: on a boundary
-    edge, or shared by a face facing the viewer (n · gaze > 0) and one facing away. A lid margin is
-    such a rim: the skin ends at an eye hole or folds back into the eye socket there."""
-    n = len(vertices)
-    normals = face_normals(vertices, faces, unit=False)  # (m, 3)
-    facing = normals @ gaze
-    has_area = np.linalg.norm(normals, axis=1) > 0
-    front = np.zeros(n, dtype=bool)
-    back = np.zeros(n, dtype=bool)
-    front[faces[has_area & (facing > 0)].ravel()] = True
-    back[faces[has_area & (facing <= 0)].ravel()] = True
-    rim = front & back
-    rim[boundary_edges(faces).ravel()] = True
-    return rim
+    origin, axes, width = eye_frame(inner, outer, eye.tail - eye.head)
+    return origin, axes, width, np.asarray(eye.head, dtype=np.float64)
 
 
 def find_lid_margins(rig: Rig, side: str) -> LidMargins:
@@ -484,7 +460,7 @@ def find_lid_margins(rig: Rig, side: str) -> LidMargins:
         return LidMargins(
             side, empty, empty, origin, axes, width, False, "no lid vertices in front of the eye"
         )
-    rim = _gaze_rim(V, F, axes[2])
+    rim = gaze_rim(V, F, axes[2])
     edged = eyelids[rim[eyelids]]
     above = uvw[edged, 1] > 0  # split by the corner chord, not by region: transfers blur the regions
     candidates = [edged[above], edged[~above]]

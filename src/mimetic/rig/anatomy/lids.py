@@ -57,6 +57,7 @@ __all__ = [
     "eye_sphere",
     "eyeball_surface",
     "find_lid_contacts",
+    "gaze_rim",
     "lid_rims",
     "sculpt_lids",
 ]
@@ -171,8 +172,10 @@ def eye_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
     return x[:3], float(np.sqrt(max(x[3] + x[:3] @ x[:3], 0.0)))
 
 
-def _gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.ndarray:
-    """Vertices (n,) bool on a boundary edge or shared by a face facing along ``gaze`` and one not."""
+def gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.ndarray:
+    """Vertices (n,) bool where the surface, seen along ``gaze`` (3,), ends or turns away: on a boundary
+    edge, or shared by a face facing the viewer (n · gaze > 0) and one facing away. A lid margin is
+    such a rim: the skin ends at an eye hole or folds back into the eye socket there."""
     n = len(vertices)
     normals = face_normals(vertices, faces, unit=False)
     facing = normals @ gaze
@@ -313,7 +316,7 @@ def lid_rims(
     next_to_tucked = np.zeros(len(vertices), dtype=bool)
     mixed = is_tucked[edges[:, 0]] != is_tucked[edges[:, 1]]
     next_to_tucked[edges[mixed].ravel()] = True
-    rim = _gaze_rim(vertices, faces, axes[2])
+    rim = gaze_rim(vertices, faces, axes[2])
     upper, lower, margin = [], [], []
     for tucked in (False, True):
         layer = lids[is_tucked[lids] == tucked]
