@@ -73,7 +73,7 @@ from mimetic.head.shape import skin_geometry
 from mimetic.head.topology import build_topology
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh
-from mimetic.testing import ict_landmarks, load_ict, shared_data_dir
+from mimetic.testing import ibug_outline, ict_landmarks, load_ict, shared_data_dir
 
 GOAL_RIG_S = 20.0
 GOAL_SPEEDUP = 5.0
@@ -517,29 +517,6 @@ def ict_landmarks68(mesh: Mesh, meta: dict) -> Landmarks:
     ids = np.asarray(meta["landmarks_68"]["vertex_indices"])[keep]
     names = tuple(IBUG68[k] for k in keep)
     return Landmarks(names, mesh.vertices[ids], np.ones(len(ids)), "cm", "ict-facekit landmarks_68 (all)")
-
-
-def ibug_outline(head: Head, samples: int = 17, seed: int = 0) -> np.ndarray:
-    """An iBUG-like outline (samples, 3) on ``head``'s skin: its frontal silhouette from eye level on
-    the subject's right, round the chin, to eye level on the left, at equal arc length (outermost of
-    300,000 surface samples along rays from the centre at eye level). tests/fit/test_rig_head.py has
-    the same builder."""
-    import trimesh
-
-    skin = trimesh.Trimesh(head.mesh.vertices, head.mesh.faces[head.mesh.parts["skin"]], process=False)
-    dense, _ = trimesh.sample.sample_surface(skin, 300_000, seed=seed)
-    eye_y = head.landmark_positions(["eye_outer_corner_L"])[0, 1]
-    chin_y = head.landmark_positions(["menton"])[0, 1]
-    front = dense[(dense[:, 2] > -1.0) & (dense[:, 1] <= eye_y) & (dense[:, 1] >= chin_y)]
-    rel = front[:, :2] - [0.0, eye_y]
-    angle, radius = np.arctan2(rel[:, 1], rel[:, 0]), np.linalg.norm(rel, axis=1)
-    silhouette = []
-    for a in np.linspace(-np.pi, 0.0, 361):  # outermost sample along each ray, right to left
-        band = np.abs(np.angle(np.exp(1j * (angle - a)))) < 0.005
-        silhouette.append(front[band][np.argmax(radius[band])])
-    silhouette = np.array(silhouette)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(silhouette[:, :2], axis=0), axis=1))])
-    return silhouette[np.searchsorted(arc, np.linspace(0.0, arc[-1], samples)).clip(0, len(silhouette) - 1)]
 
 
 def generated_landmarks(head: Head) -> Landmarks:

@@ -196,6 +196,30 @@ def triangle_soup(mesh: Mesh) -> Mesh:
     return Mesh(vertices, np.arange(len(vertices)).reshape(-1, 3), mesh.parts, colors, mesh.units)
 
 
+def ibug_outline(head: Head, samples: int = 17, seed: int = 0) -> np.ndarray:
+    """An iBUG-like outline (samples, 3) on ``head``'s skin: its frontal silhouette from eye level on
+    the subject's right, round the chin, to eye level on the left, at equal arc length (outermost of
+    300,000 surface samples along rays from the centre at eye level), as a 68-point detector's jaw
+    points lie. (The head's own jaw_* points lie on the same silhouette, at fixed angles from a lower
+    centre.)"""
+    import trimesh
+
+    skin = trimesh.Trimesh(head.mesh.vertices, head.mesh.faces[head.mesh.parts["skin"]], process=False)
+    dense, _ = trimesh.sample.sample_surface(skin, 300_000, seed=seed)
+    eye_y = head.landmark_positions(["eye_outer_corner_L"])[0, 1]
+    chin_y = head.landmark_positions(["menton"])[0, 1]
+    front = dense[(dense[:, 2] > -1.0) & (dense[:, 1] <= eye_y) & (dense[:, 1] >= chin_y)]
+    rel = front[:, :2] - [0.0, eye_y]
+    angle, radius = np.arctan2(rel[:, 1], rel[:, 0]), np.linalg.norm(rel, axis=1)
+    silhouette = []
+    for a in np.linspace(-np.pi, 0.0, 361):  # outermost sample along each ray, right to left
+        band = np.abs(np.angle(np.exp(1j * (angle - a)))) < 0.005
+        silhouette.append(front[band][np.argmax(radius[band])])
+    silhouette = np.array(silhouette)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(silhouette[:, :2], axis=0), axis=1))])
+    return silhouette[np.searchsorted(arc, np.linspace(0.0, arc[-1], samples)).clip(0, len(silhouette) - 1)]
+
+
 SHARED_DATA_ENV = "MIMETIC_SHARED_DATA"
 ICT_IBUG_USED = tuple(i for i in range(17, 68) if i not in (60, 64))
 """The iBUG-68 landmarks of ICT-FaceKit's file that fits use: no jaw contour (0-16, which a mesh

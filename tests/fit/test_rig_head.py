@@ -24,7 +24,7 @@ from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.rig.bones import LOWER_LIP_REACH, UPPER_LIP_REACH
 from mimetic.rig.recipe import build_rig
-from mimetic.testing import ict_landmarks, load_ict, require_shared_data
+from mimetic.testing import ibug_outline, ict_landmarks, load_ict, require_shared_data
 
 FIT_NAMES = "no pupils, jaw contour or menton: the points a user would click"
 
@@ -478,28 +478,6 @@ def test_ict_mouth_opens_without_tearing_at_the_corners_or_dragging_the_gums(
 
 
 # ------------------------------------------------------------------------- 68-point files (iBUG outline)
-
-
-def ibug_outline(head: Head, samples: int = 17, seed: int = 0) -> np.ndarray:
-    """An iBUG-like outline (samples, 3) on ``head``'s skin: its frontal silhouette from eye level on
-    the subject's right, round the chin, to eye level on the left, at equal arc length. (The head's
-    own jaw_* points lie on the same silhouette, at fixed angles from a lower centre.)"""
-    import trimesh
-
-    skin = trimesh.Trimesh(head.mesh.vertices, head.mesh.faces[head.mesh.parts["skin"]], process=False)
-    dense, _ = trimesh.sample.sample_surface(skin, 300_000, seed=seed)
-    eye_y = head.landmark_positions(["eye_outer_corner_L"])[0, 1]
-    chin_y = head.landmark_positions(["menton"])[0, 1]
-    front = dense[(dense[:, 2] > -1.0) & (dense[:, 1] <= eye_y) & (dense[:, 1] >= chin_y)]
-    rel = front[:, :2] - [0.0, eye_y]
-    angle, radius = np.arctan2(rel[:, 1], rel[:, 0]), np.linalg.norm(rel, axis=1)
-    silhouette = []
-    for a in np.linspace(-np.pi, 0.0, 361):  # outermost sample along each ray, right to left
-        band = np.abs(np.angle(np.exp(1j * (angle - a)))) < 0.005
-        silhouette.append(front[band][np.argmax(radius[band])])
-    silhouette = np.array(silhouette)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(silhouette[:, :2], axis=0), axis=1))])
-    return silhouette[np.searchsorted(arc, np.linspace(0.0, arc[-1], samples)).clip(0, len(silhouette) - 1)]
 
 
 def write_ibug68_csv(path, points68: np.ndarray) -> None:
