@@ -60,6 +60,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench_rig import print_table, verdict  # the same tables as the fit benchmark
 from mimetic.animate.expressions import expression_pose, load_library
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
@@ -124,20 +125,6 @@ QUICK_GENERATED_SEEDS = (None, 1)
 
 
 # --------------------------------------------------------------------------- printing
-
-
-def print_table(title: str, header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
-    """One aligned text table: a title, a header and its rows (cells already formatted)."""
-    widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header))]
-    print(f"\n{title}")
-    for k, row in enumerate([header, *rows]):
-        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
-        if k == 0:
-            print("-+-".join("-" * w for w in widths))
-
-
-def verdict(ok: bool) -> str:
-    return "met" if ok else "NOT met"
 
 
 def verdicts(**parts: bool) -> str:
