@@ -84,6 +84,8 @@ def test_render_single_view_of_a_mesh(rig_file, tmp_path):
 
 def test_demo_writes_heads_rigs_and_sheets(tmp_path):
     out = tmp_path / "demo"
+    out.mkdir()  # an earlier demo's folder: `make demo` runs again into it
+    (out / "head.glb").write_bytes(b"an old head")
     result = run_cli("demo", "-o", str(out), "--resolution", RES)
     assert result.exit_code == 0, result.output
     for name in (
@@ -103,6 +105,16 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
 
 
 # --- bad input: a clear one-line error, exit code 1, no file overwritten ------------------------
+
+
+def test_output_folders_must_be_folders(rig_file, tmp_path):
+    taken = tmp_path / "taken"
+    taken.write_text("a file")
+    _fails_with(run_cli("demo", "-o", taken), "is a file; give a folder")
+    result = run_cli("export", rig_file, "-o", tmp_path / "x.glb", "--obj-dir", taken)
+    _fails_with(result, "is a file; give a folder")
+    _fails_with(run_cli("demo", "-o", tmp_path / "no" / "demo"), "does not exist")
+    assert taken.read_text() == "a file" and not (tmp_path / "x.glb").exists()
 
 
 def _fails_with(result, *words: str) -> None:

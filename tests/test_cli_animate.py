@@ -102,6 +102,8 @@ def test_export_arkit_writes_52_named_targets_and_objs(files):
 
     rig_file, _, folder = files
     out, objs = folder / "arkit.glb", folder / "arkit_objs"
+    objs.mkdir()  # a folder that exists already (a second export into it) is written into
+    (objs / "jawOpen.obj").write_text("an old shape")
     result = run_cli("export", rig_file, "--arkit", "--obj-dir", objs, "-o", out)
     assert result.exit_code == 0, result.output
     assert list(read_glb_summary(out)["target_names"]) == list(ARKIT_NAMES)

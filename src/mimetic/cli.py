@@ -153,16 +153,30 @@ def _output(path: Path, suffixes: tuple[str, ...], option: str = "-o") -> Path:
 
 
 def _folder_of(path: Path) -> Path:
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise MimeticError(f"the folder {folder} does not exist; create it first (mkdir -p {folder})")
+    """Check an output file's folder before any work: it exists and can be written; ``path`` is not a
+    folder."""
     if path.is_dir():
         raise MimeticError(f"{path} is a folder; give a file name")
+    _writable(path.parent if str(path.parent) else Path("."))
+    return path
+
+
+def _output_folder(path: Path) -> Path:
+    """Check an output folder before any work: an existing folder to write into (its files are
+    replaced one by one), or a new one whose parent exists; not a file."""
+    if path.exists() and not path.is_dir():
+        raise MimeticError(f"{path} is a file; give a folder")
+    _writable(path if path.is_dir() else (path.parent if str(path.parent) else Path(".")))
+    return path
+
+
+def _writable(folder: Path) -> None:
     import os
 
+    if not folder.is_dir():
+        raise MimeticError(f"the folder {folder} does not exist; create it first (mkdir -p {folder})")
     if not os.access(folder, os.W_OK):
         raise MimeticError(f"cannot write into {folder}: permission denied")
-    return path
 
 
 # --------------------------------------------------------------------------- progress
@@ -778,7 +792,7 @@ def export_command(
 
     _output(out, SCENE_OUTPUTS)
     if obj_dir is not None:
-        _folder_of(obj_dir)
+        _output_folder(obj_dir)
     loaded = load_rig(rig)
     with _progress("bake") as progress:
         if arkit:
@@ -898,7 +912,7 @@ def demo(
     """
     from mimetic.demo import run_demo
 
-    _folder_of(out)
+    _output_folder(out)
     with _progress("demo") as progress:
         result = run_demo(out, resolution=resolution, progress=progress)
     table = Table("file", "size", title=f"mimetic demo → {result.out_dir}")
