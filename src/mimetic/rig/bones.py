@@ -7,9 +7,9 @@
   behind the ear or low on the neck), screened at ``HARMONIC_LENGTH_REL`` of the head height, as
   bounded harmonic weights are: it spreads wide over the cheeks and under the chin and narrows
   toward the lips, as the jaw weights measured on captured jaw openings do. At the mouth corners
-  (the modiolus) both lips take ``CORNER_JAW`` of the jaw's motion and the share ramps along each
-  lip over ``UPPER_LIP_REACH`` / ``LOWER_LIP_REACH`` of half the mouth width, so the opening is a
-  lens and the corners never tear.
+  (the modiolus, all lip skin within ``CORNER_CORE``) both lips take ``CORNER_JAW`` of the jaw's
+  motion and the share ramps along each lip over ``UPPER_LIP_REACH`` / ``LOWER_LIP_REACH`` of half
+  the mouth width, so the opening is a lens and the corners never tear.
 * **Eyelids.** One bone per lid rotating about the eye's centre; each column of the lid is weighted
   so that ``EYELID_CLOSED_RAD`` brings its margin to the opposite lid's. The ring topology gives the
   columns and the lid's fade into the skin; the upper lid's closing weights are then made exact from
@@ -41,6 +41,9 @@ HARMONIC_LENGTH_REL = 0.15
 """Diffusion length (× head height) of the jaw weight between the jaw's and the skull's skin."""
 CORNER_JAW = 0.5
 """Jaw weight of the mouth corners (the modiolus: halfway between the lips)."""
+CORNER_CORE = 0.1
+"""Lip skin this near a mouth corner (× half the mouth width, 2.5 mm) takes exactly CORNER_JAW: the
+corner's slivers, where the lips' rows converge, move as one instead of shearing flat."""
 UPPER_LIP_REACH = 0.9
 """The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width."""
 LOWER_LIP_REACH = 0.75
@@ -126,8 +129,8 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     ]
     for ids in (regions["chin"], core, lower):
         fixed[ids], value[ids] = True, 1.0
-    value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(0.0, LOWER_LIP_REACH, reach[lower]))
-    value[upper] = CORNER_JAW * (1.0 - smoothstep(0.0, UPPER_LIP_REACH, reach[upper]))
+    value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(CORNER_CORE, LOWER_LIP_REACH, reach[lower]))
+    value[upper] = CORNER_JAW * (1.0 - smoothstep(CORNER_CORE, UPPER_LIP_REACH, reach[upper]))
     skin_faces = head.mesh.faces[head.mesh.parts["skin"]]
     free = np.zeros(n, dtype=bool)
     free[skin] = ~fixed[skin]

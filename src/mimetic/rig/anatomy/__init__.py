@@ -12,6 +12,8 @@
 * ``actions``: tissue actions, the displacement fields of muscles that wires and vector muscles
   cannot make (the frontalis lifting the whole forehead, the cheek raised toward the eye, the lips
   rolled in or pushed out, the cheeks puffed, the tongue put out), each linear in one channel;
+* ``tissue_normals``: the directions creases sink and tissue actions bulge along: the skin's
+  normals with the lips closed, smoothed (not stored: derived from the mesh when the rig is);
 * ``thickness``: the soft-tissue thickness under every skin vertex (thin on the lids and over the
   nose, thick on the cheeks), which the physically based engines lay their tissue layers on.
 
@@ -25,7 +27,7 @@ fractions of the head height (``Rig.scale``), named ``_rel``.
 
 from mimetic.rig.anatomy.accessories import Accessories, find_accessories
 from mimetic.rig.anatomy.actions import Action, find_actions
-from mimetic.rig.anatomy.anatomy import Anatomy, derive_anatomy
+from mimetic.rig.anatomy.anatomy import Anatomy, derive_anatomy, tissue_normals
 from mimetic.rig.anatomy.creases import Crease, find_creases
 from mimetic.rig.anatomy.lids import LidContact, closing_weights, find_lid_contacts
 from mimetic.rig.anatomy.lips import lip_contact
@@ -47,5 +49,6 @@ __all__ = [
     "find_lid_contacts",
     "forehead_skull",
     "lip_contact",
+    "tissue_normals",
     "tissue_thickness",
 ]

@@ -62,6 +62,12 @@ class Bump:
         Motion along the outward normal at the centre at full activation, × head height.
     sided : bool
         One bump per side (``_L``, ``_R``) or one on the midline.
+    mass : bool
+        The tissue moves as one mass (the lips, the cheek's fat): the motion is not slid onto the
+        surface, and the bump falls off in the face plane, whole through its depth out to
+        ``radii_rel[2]`` (``_bump_weights``), so the mass moves through its depth as one: where the
+        lips fold into the mouth their inner faces move as their outer ones do instead of shearing
+        past them or being overtaken from behind.
     """
 
     name: str
@@ -72,6 +78,7 @@ class Bump:
     slide_rel: tuple[float, float, float]
     bulge_rel: float
     sided: bool = True
+    mass: bool = False
 
 
 @dataclass(frozen=True)
@@ -177,8 +184,9 @@ BUMPS: tuple[Bump, ...] = (
         "mouth_corner",
         (0.084, 0.0226, -0.0121),
         (0.15, 0.15, 0.15),
-        (0.0111, 0.0339, -0.0297),
-        -0.0041,
+        (0.035, 0.0379, -0.0279),
+        -0.0025,
+        mass=True,
     ),
     # mouthDimple: the cheek beside the corner is drawn back and in
     Bump(
@@ -187,8 +195,9 @@ BUMPS: tuple[Bump, ...] = (
         "mouth_corner",
         (0.0236, -0.0758, 0.0015),
         (0.1028, 0.1163, 0.15),
-        (-0.0316, 0.0362, -0.0407),
-        -0.0076,
+        (-0.0159, 0.0392, -0.0402),
+        0.03,
+        mass=True,
     ),
     # cheekPuff: air pushes the cheek and the lips out
     Bump(
@@ -197,8 +206,9 @@ BUMPS: tuple[Bump, ...] = (
         "mouth_corner",
         (0.0455, 0.0033, 0.0203),
         (0.15, 0.15, 0.15),
-        (0.0025, 0.0095, 0.0633),
-        0.0228,
+        (-0.0072, 0.0123, 0.0844),
+        -0.0006,
+        mass=True,
     ),
     Bump("nasalis", "nasalis", "alare", (-0.02, 0.04, 0.0), (0.035, 0.04, 0.04), (-0.006, 0.008, 0.0), 0.0),
     # no captured shape: the nostril flares (~2 mm)
@@ -219,8 +229,9 @@ BUMPS: tuple[Bump, ...] = (
         "mouth_corner",
         (-0.1472, 0.0005, 0.0009),
         (0.15, 0.15, 0.15),
-        (0.0577, -0.0044, -0.0021),
-        -0.0056,
+        (0.0829, 0.0038, 0.0048),
+        -0.0009,
+        mass=True,
     ),
     # mouthFunnel: both lips pushed forward and out
     Bump(
@@ -229,9 +240,10 @@ BUMPS: tuple[Bump, ...] = (
         "upper_lip_inner",
         (0.0, 0.0113, -0.0143),
         (0.15, 0.1182, 0.15),
-        (0.0, 0.0046, 0.039),
-        0.0078,
+        (0.0, 0.0098, 0.0477),
+        0.0015,
         sided=False,
+        mass=True,
     ),
     # mouthPucker: the closed lips pushed forward
     Bump(
@@ -240,9 +252,10 @@ BUMPS: tuple[Bump, ...] = (
         "upper_lip_inner",
         (0.0, 0.0011, -0.0512),
         (0.15, 0.076, 0.1132),
-        (0.0, 0.0039, 0.051),
-        -0.0042,
+        (0.0, 0.0077, 0.0491),
+        0.0066,
         sided=False,
+        mass=True,
     ),
 )
 """Every bump, calibrated (with the driving channel at 1, or 0.3 for the orbicularis oculi as ARKit's
@@ -273,11 +286,20 @@ ROLLS: tuple[Roll, ...] = (
 """The lip rolls; see ``Roll``."""
 
 
-def _bump_weights(surface: Surface, centre: np.ndarray, radii_rel, ids: np.ndarray) -> tuple:
-    """Vertices (k,) among ``ids`` and weights (k,) in (0, 1] of the bump ``(1 − r²)²`` around ``centre``."""
+def _bump_weights(
+    surface: Surface, centre: np.ndarray, radii_rel, ids: np.ndarray, *, mass: bool = False
+) -> tuple:
+    """Vertices (k,) among ``ids`` and weights (k,) in (0, 1] of the bump ``(1 − r²)²`` around ``centre``
+    (``r`` over the semi-axes ``radii_rel``). A ``mass`` bump measures ``r`` in the face plane (x, y)
+    and is whole through its depth out to its depth semi-axis, fading to 0 at twice that (a
+    smoothstep in ``|z − centre_z|``)."""
     r = (surface.vertices[ids] - centre) / (np.asarray(radii_rel, dtype=np.float64) * surface.scale)
+    depth = np.ones(len(ids))
+    if mass:
+        t = np.clip(np.abs(r[:, 2]) - 1.0, 0.0, 1.0)
+        depth, r = 1.0 - t * t * (3.0 - 2.0 * t), r[:, :2]
     r2 = np.einsum("kd,kd->k", r, r)
-    w = np.where(r2 < 1.0, (1.0 - np.minimum(r2, 1.0)) ** 2, 0.0)
+    w = np.where(r2 < 1.0, (1.0 - np.minimum(r2, 1.0)) ** 2, 0.0) * depth
     keep = w > MIN_WEIGHT
     return ids[keep], w[keep]
 
@@ -301,9 +323,11 @@ def bump_actions(surface: Surface, bump: Bump, channels: Iterable[str]) -> list[
             continue
         mirror = np.array([sx, 1.0, 1.0])
         centre = surface.landmark(anchor) + np.asarray(bump.centre_rel) * mirror * surface.scale
-        ids, w = _bump_weights(surface, centre, bump.radii_rel, surface.skin)
+        ids, w = _bump_weights(surface, centre, bump.radii_rel, surface.skin, mass=bump.mass)
         normals = surface.normals[ids]
-        field = slide_onto(np.asarray(bump.slide_rel) * mirror, normals) + bump.bulge_rel * normals
+        motion = np.asarray(bump.slide_rel) * mirror
+        slide = np.broadcast_to(motion, normals.shape) if bump.mass else slide_onto(motion, normals)
+        field = slide + bump.bulge_rel * normals
         out.append(Action(bump.name + suffix, {channel: 1.0}, ids, w[:, None] * field))
     return out
 

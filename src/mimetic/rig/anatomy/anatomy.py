@@ -28,8 +28,8 @@ SKIN_PARTS = ("skin", "mouth")
 CAVITY_REACH_REL = 0.03
 """Tissue actions carry on from the lips into the mouth cavity over this × the head height (6 mm)."""
 NORMAL_SMOOTHING_REL = 0.02
-"""Tissue actions slide and bulge along the skin's normals smoothed over this × the head height (4 mm)."""
-"""Tissue actions carry on from the lips into the mouth cavity over this × the head height (4 mm)."""
+"""Creases sink, and tissue actions slide and bulge, along the skin's normals smoothed over this × the
+head height (4 mm), with the lips closed (``tissue_normals``)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,9 +99,9 @@ def _anatomy(
     def landmark(name: str) -> np.ndarray:
         return landmarks[name].position(v, f)
 
-    normals = vertex_normals(v, f)
     crease_skin = mesh.part_vertices("skin") if "skin" in mesh.parts else skin
     lips = lip_contact(v, regions, scale)
+    normals = tissue_normals(v, f[mesh.parts["skin"]] if "skin" in mesh.parts else f, lips, scale)
     corners = {
         side: np.stack([landmark(f"eye_inner_corner_{side}"), landmark(f"eye_outer_corner_{side}")])
         for side in ("L", "R")
@@ -117,7 +117,7 @@ def _anatomy(
         actions=_into_cavity(
             find_actions(
                 v,
-                _tissue_normals(v, f[mesh.parts["skin"]] if "skin" in mesh.parts else f, lips, scale),
+                normals,
                 crease_skin,
                 mesh.part_vertices("tongue") if "tongue" in mesh.parts else np.zeros(0, np.int64),
                 landmark,
@@ -134,11 +134,12 @@ def _anatomy(
     )
 
 
-def _tissue_normals(vertices: np.ndarray, faces: np.ndarray, lips: np.ndarray, scale: float) -> np.ndarray:
-    """Unit normals (n, 3) of the skin for the tissue actions: tissue moves as a mass, so its normals
-    are those of the skin with the lips closed (each lip-contact pair ``lips`` (k, 2) one vertex) and
-    smoothed over ``NORMAL_SMOOTHING_REL`` of the head height. Where the lips fold into the mouth the
-    two lips then slide and bulge alike instead of toward each other and across the lip line.
+def tissue_normals(vertices: np.ndarray, faces: np.ndarray, lips: np.ndarray, scale: float) -> np.ndarray:
+    """Unit normals (n, 3) of the skin for the creases and tissue actions: tissue moves as a mass, so
+    its normals are those of the skin with the lips closed (each lip-contact pair ``lips`` (k, 2) one
+    vertex) and smoothed over ``NORMAL_SMOOTHING_REL`` of the head height. Where the lips fold into
+    the mouth the two lips then slide and bulge alike instead of toward each other and across the lip
+    line.
     ``faces``: the skin part alone, so a mouth cavity's own normals do not tilt the lips'."""
     one = np.arange(len(vertices))
     one[lips[:, 1]] = lips[:, 0]  # the lower lip's contact vertices become their upper partners

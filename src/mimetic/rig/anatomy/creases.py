@@ -1,6 +1,7 @@
 """Creases: lines of skin that sink when a muscle contracts (the automated-rigging thesis, §4.3).
 
-Each crease is a segment on the rest skin whose vertices sink inward (against the rest normal)
+Each crease is a segment on the rest skin whose vertices sink inward (against the rest tissue normal:
+the skin's normal smoothed, with the lips closed, so the skin at a mouth corner sinks as one)
 with a Gaussian profile across the line and a sine taper along it, by ``depth_rel`` at full
 contraction of its driving channels: three forehead lines per side with the frontalis (inner and
 outer halves), a vertical glabella line with the corrugator, a nasion line with the procerus,
@@ -59,7 +60,7 @@ class Crease:
     vertices : (k,) int64
         The vertices it moves.
     offsets_rel : (k, 3) float64
-        Each vertex's displacement at full depth, × the head height (inward along the rest normal).
+        Each vertex's displacement at full depth, × the head height (inward along the rest tissue normal).
     """
 
     name: str
@@ -104,7 +105,7 @@ def find_creases(
     Parameters
     ----------
     vertices, normals : (n, 3) float64
-        The rest mesh (rig units) and its unit vertex normals.
+        The rest mesh (rig units) and its unit tissue normals (``anatomy.tissue_normals``).
     skin : (s,) int64
         The vertices a crease may move.
     landmark : callable(name) -> (3,)
