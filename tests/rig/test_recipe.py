@@ -231,10 +231,10 @@ def test_build_rig_jaw_carries_the_lower_teeth_tongue_and_lower_lip_only(seed):
     assert np.all(w[head.regions["lower_lip"], jaw] > 0.2)
     assert np.mean(w[head.regions["lower_lip"], jaw]) > 0.6
     assert (
-        w[head.landmarks["upper_lip_top"], jaw] <= 0.1 and w[head.landmarks["lower_lip_bottom"], jaw] == 1.0
+        w[head.landmarks["upper_lip_top"], jaw] <= 0.1 and w[head.landmarks["lower_lip_bottom"], jaw] >= 0.99
     )
     assert np.all(w[head.regions["forehead"], jaw] == 0.0)
-    assert w[head.landmarks["pogonion"], jaw] == 1.0
+    assert w[head.landmarks["pogonion"], jaw] >= 0.99  # the chin's border is smoothed, its core all but 1
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -9,7 +9,9 @@
   toward the lips, as the jaw weights measured on captured jaw openings do. At the mouth corners
   (the modiolus, all lip skin within ``CORNER_CORE``) both lips take ``CORNER_JAW`` of the jaw's
   motion and the share ramps along each lip over ``UPPER_LIP_REACH`` / ``LOWER_LIP_REACH`` of half
-  the mouth width, so the opening is a lens and the corners never tear.
+  the mouth width, so the opening is a lens and the corners never tear. Last, the weight of the
+  chin and the cheeks is smoothed over ``JAW_SMOOTHING_REL`` of the head height, so the chin's
+  border is not a crease.
 * **Eyelids.** One bone per lid rotating about the eye's centre; each column of the lid is weighted
   so that ``EYELID_CLOSED_RAD`` brings its margin to the opposite lid's. The ring topology gives the
   columns and the lid's fade into the skin; the upper lid's closing weights are then made exact from
@@ -46,8 +48,12 @@ CORNER_CORE = 0.1
 corner's slivers, where the lips' rows converge, move as one instead of shearing flat."""
 UPPER_LIP_REACH = 0.9
 """The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width."""
-LOWER_LIP_REACH = 0.75
-"""The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width."""
+LOWER_LIP_REACH = 1.2
+"""The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width: a little past the
+mouth's middle (which takes 0.95), so no edge across the lower lip opens wide near a corner."""
+JAW_SMOOTHING_REL = 0.03
+"""The jaw weight of the chin and the cheeks is smoothed over this × the head height (6 mm) last, so
+the chin's border with the cheeks is not a crease."""
 EYELID_CLOSED_RAD = 0.75  # upper-lid rotation that closes the eye (larger than any head's lid opening)
 BONES = (
     "head",
@@ -135,6 +141,10 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     free = np.zeros(n, dtype=bool)
     free[skin] = ~fixed[skin]
     harmonic = smooth_field(value, v, skin_faces, HARMONIC_LENGTH_REL * scale, free=free)
+    unfixed = free.copy()  # and the chin, whose border with the cheeks would crease
+    unfixed[regions["chin"]] = unfixed[core] = True
+    unfixed[lower] = False
+    harmonic = smooth_field(harmonic, v, skin_faces, JAW_SMOOTHING_REL * scale, free=unfixed)
     jaw[skin] = harmonic[skin]
     jaw[lower], jaw[upper] = value[lower], value[upper]  # the lips' loops inside the mouth too
     parts = head.mesh.parts
