@@ -53,6 +53,23 @@ def test_creases_sink_inward_and_are_driven_by_their_muscles(rig):
         assert channel in driven, channel
 
 
+def test_nasolabial_fold_stays_clear_of_the_lips(rig):
+    """The fold ends at the modiolus: no lip vertex sinks, and the skin within 4 mm of the lips sinks
+    less than the fold's depth (the default head's corner slivers flipped under it)."""
+    from mimetic.rig.anatomy.creases import NASOLABIAL_CLEAR_REL, NASOLABIAL_DEPTH_REL
+
+    lips = np.union1d(rig.regions["upper_lip"], rig.regions["lower_lip"])
+    v = rig.mesh.vertices
+    for side in "LR":
+        (fold,) = [c for c in rig.anatomy.creases if c.name == f"nasolabial_{side}"]
+        assert not np.isin(fold.vertices, lips).any()
+        depth = np.linalg.norm(fold.offsets_rel, axis=1)
+        near = np.linalg.norm(v[fold.vertices, None] - v[lips][None], axis=2).min(axis=1)
+        close = near < 0.5 * NASOLABIAL_CLEAR_REL * rig.scale
+        assert close.any() and depth[close].max() < 0.6 * NASOLABIAL_DEPTH_REL
+        assert depth.max() > 0.5 * NASOLABIAL_DEPTH_REL  # it still folds away from them
+
+
 def test_skull_lies_under_the_forehead(rig):
     skull = rig.anatomy.skull
     np.testing.assert_array_equal(skull.vertices, rig.regions["forehead"])

@@ -48,9 +48,9 @@ CORNER_CORE = 0.1
 corner's slivers, where the lips' rows converge, move as one instead of shearing flat."""
 UPPER_LIP_REACH = 0.9
 """The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width."""
-LOWER_LIP_REACH = 1.2
-"""The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width: a little past the
-mouth's middle (which takes 0.95), so no edge across the lower lip opens wide near a corner."""
+LOWER_LIP_REACH = 1.0
+"""The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width: all the way to the
+mouth's middle, so no edge across the lower lip opens wide near a corner."""
 JAW_SMOOTHING_REL = 0.03
 """The jaw weight of the chin and the cheeks is smoothed over this × the head height (6 mm) last, so
 the chin's border with the cheeks is not a crease."""

@@ -14,13 +14,17 @@ before skinning (as the creases are), so it bakes exactly and follows the jaw it
 kinds build them from the rig's own landmarks and normals, in fractions of the head height:
 
 * ``Bump``: a smooth ellipsoidal bump ``w = (1 − r²)²`` placed from a landmark, moving its tissue
-  by a vector slid onto the surface (the tissue slides over the bone) plus a bulge along the normal;
+  by a vector slid onto the surface (a sheet sliding over the bone: the forehead, the brows) or,
+  for a mass (the lips, the cheek's fat, the side of the nose), by the same vector everywhere and
+  whole through its depth, plus a bulge along the normal;
 * ``Roll``: a lip turning about a horizontal line behind it (``θ x̂ × (p − pivot)``), weighted by a
   bump over the lip.
 
 The constants (``BUMPS``, ``ROLLS``) were calibrated as mechanisms against captured expressions
 (ICT-FaceKit's shapes: each mechanism's place, reach and amplitude, a dozen numbers, fitted on the
-neutral and applied to every head from its own landmarks), not as shapes.
+neutral with the rest of the rig in place and applied to every head from its own landmarks), not as
+shapes. Reaches run up to 0.3 of the head height (6.5 cm): a cheek raise or a brow lift moves the
+whole cheek or forehead.
 """
 
 from __future__ import annotations
@@ -121,40 +125,40 @@ BUMPS: tuple[Bump, ...] = (
         "frontalis_sheet_inner",
         "frontalis_inner",
         "brow_inner_mid",
-        (-0.0514, -0.0016, -0.0199),
-        (0.15, 0.15, 0.0614),
-        (0.0101, 0.0124, 0.0163),
-        0.0105,
+        (-0.0289, -0.0022, -0.0042),
+        (0.165, 0.3, 0.0551),
+        (0.0073, 0.0087, 0.0091),
+        0.008,
     ),
     # browOuterUp: the outer brow and the forehead above it rise
     Bump(
         "frontalis_sheet_outer",
         "frontalis_outer",
         "brow_outer_mid",
-        (-0.0058, 0.0125, -0.0334),
-        (0.15, 0.15, 0.15),
-        (0.034, 0.029, 0.0036),
-        0.0079,
+        (0.0104, 0.0067, 0.0416),
+        (0.3, 0.1658, 0.3),
+        (0.0094, 0.0251, -0.0106),
+        0.0013,
     ),
     # browDown: the brow draws down, in and forward over the eye
     Bump(
         "corrugator_gather",
         "corrugator",
         "brow_inner_mid",
-        (0.1235, -0.0083, -0.1239),
-        (0.15, 0.15, 0.15),
-        (-0.0187, -0.0065, 0.0101),
-        0.0023,
+        (0.095, 0.0082, -0.1058),
+        (0.3, 0.188, 0.3),
+        (-0.009, -0.0076, 0.0122),
+        0.0035,
     ),
     # cheekSquint (AU6): the cheek rises toward the eye
     Bump(
         "cheek_raise",
         "orbicularis_oculi_outer",
         "eye_outer_corner",
-        (0.0027, -0.1502, -0.0159),
-        (0.15, 0.15, 0.15),
-        (-0.0003, 0.0309, 0.031),
-        0.0119,
+        (-0.0045, -0.1915, -0.1096),
+        (0.1916, 0.28, 0.2732),
+        (-0.007, 0.0348, 0.0195),
+        0.0084,
     ),
     # eyeSquint: the lower lid and the skin under it bunch up and in
     Bump(
@@ -172,20 +176,21 @@ BUMPS: tuple[Bump, ...] = (
         "nose_side_lift",
         "levator_labii_nasal",
         "alar_base",
-        (0.1248, 0.0398, -0.0059),
-        (0.15, 0.15, 0.15),
-        (0.0166, 0.0616, 0.0869),
-        0.0198,
+        (0.1171, -0.0341, -0.0647),
+        (0.2391, 0.295, 0.1),
+        (-0.0024, 0.0316, 0.0102),
+        -0.0007,
+        mass=True,
     ),
     # mouthSmile: the malar fat piles up over the zygomatic major
     Bump(
         "malar_bulk",
         "zygomatic_major",
         "mouth_corner",
-        (0.084, 0.0226, -0.0121),
-        (0.15, 0.15, 0.15),
-        (0.035, 0.0379, -0.0279),
-        -0.0025,
+        (0.0602, 0.0417, -0.0954),
+        (0.1923, 0.265, 0.1),
+        (0.0225, 0.0253, -0.0219),
+        0.0015,
         mass=True,
     ),
     # mouthDimple: the cheek beside the corner is drawn back and in
@@ -193,10 +198,10 @@ BUMPS: tuple[Bump, ...] = (
         "dimple",
         "buccinator",
         "mouth_corner",
-        (0.0236, -0.0758, 0.0015),
-        (0.1028, 0.1163, 0.15),
-        (-0.0159, 0.0392, -0.0402),
-        0.03,
+        (-0.0011, -0.0452, 0.003),
+        (0.0861, 0.1227, 0.1),
+        (0.0018, 0.0206, -0.0272),
+        0.0054,
         mass=True,
     ),
     # cheekPuff: air pushes the cheek and the lips out
@@ -204,10 +209,10 @@ BUMPS: tuple[Bump, ...] = (
         "cheek_puff",
         "cheek_puff",
         "mouth_corner",
-        (0.0455, 0.0033, 0.0203),
-        (0.15, 0.15, 0.15),
-        (-0.0072, 0.0123, 0.0844),
-        -0.0006,
+        (0.0303, 0.009, -0.0793),
+        (0.2506, 0.2134, 0.1),
+        (-0.0056, 0.0098, 0.0588),
+        0.0045,
         mass=True,
     ),
     Bump("nasalis", "nasalis", "alare", (-0.02, 0.04, 0.0), (0.035, 0.04, 0.04), (-0.006, 0.008, 0.0), 0.0),
@@ -227,10 +232,10 @@ BUMPS: tuple[Bump, ...] = (
         "mouth_slide",
         "mouth_slide",
         "mouth_corner",
-        (-0.1472, 0.0005, 0.0009),
-        (0.15, 0.15, 0.15),
-        (0.0829, 0.0038, 0.0048),
-        -0.0009,
+        (-0.1868, -0.0011, -0.0344),
+        (0.3, 0.2526, 0.1),
+        (0.0657, 0.006, 0.0068),
+        0.0027,
         mass=True,
     ),
     # mouthFunnel: both lips pushed forward and out
@@ -238,10 +243,10 @@ BUMPS: tuple[Bump, ...] = (
         "lip_funnel",
         "orbicularis_oris_peripheralis",
         "upper_lip_inner",
-        (0.0, 0.0113, -0.0143),
-        (0.15, 0.1182, 0.15),
-        (0.0, 0.0098, 0.0477),
-        0.0015,
+        (0.0, -0.0118, -0.0809),
+        (0.3, 0.1357, 0.1),
+        (0.0, 0.0076, 0.0414),
+        0.0024,
         sided=False,
         mass=True,
     ),
@@ -250,10 +255,10 @@ BUMPS: tuple[Bump, ...] = (
         "lip_protrusion",
         "orbicularis_oris",
         "upper_lip_inner",
-        (0.0, 0.0011, -0.0512),
-        (0.15, 0.076, 0.1132),
-        (0.0, 0.0077, 0.0491),
-        0.0066,
+        (0.0, -0.0004, -0.1139),
+        (0.3, 0.1309, 0.1),
+        (0.0, 0.0073, 0.0396),
+        0.0042,
         sided=False,
         mass=True,
     ),
@@ -268,9 +273,9 @@ ROLLS: tuple[Roll, ...] = (
         "orbicularis_oris_marginalis_upper",
         "upper_lip_top",
         "upper_lip",
-        (0.0364, -0.0407),
-        (0.1047, 0.15, 0.1124),
-        1.3602,
+        (0.042, -0.0384),
+        (0.1877, 0.2148, 0.3),
+        0.8622,
     ),
     # mouthRollLower: the lip rolls in over the teeth
     Roll(
@@ -278,9 +283,9 @@ ROLLS: tuple[Roll, ...] = (
         "orbicularis_oris_marginalis_lower",
         "lower_lip_bottom",
         "lower_lip",
-        (0.0298, -0.0396),
-        (0.15, 0.1294, 0.0587),
-        -1.6487,
+        (-0.0227, -0.0452),
+        (0.1378, 0.1614, 0.1121),
+        -1.5185,
     ),
 )
 """The lip rolls; see ``Roll``."""

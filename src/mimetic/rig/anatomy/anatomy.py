@@ -108,7 +108,16 @@ def _anatomy(
         if f"eye_inner_corner_{side}" in landmarks and f"eye_outer_corner_{side}" in landmarks
     }
     return Anatomy(
-        creases=find_creases(v, normals, crease_skin, landmark, set(landmarks), channel_names, scale),
+        creases=find_creases(
+            v,
+            normals,
+            crease_skin,
+            landmark,
+            set(landmarks),
+            channel_names,
+            scale,
+            np.union1d(regions.get("upper_lip", ()), regions.get("lower_lip", ())).astype(np.int64),
+        ),
         skull=forehead_skull(v, regions, scale),
         lip_contact=lips,
         accessories=find_accessories(mesh, scale, skin_weights),

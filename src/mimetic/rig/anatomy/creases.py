@@ -6,8 +6,8 @@ with a Gaussian profile across the line and a sine taper along it, by ``depth_re
 contraction of its driving channels: three forehead lines per side with the frontalis (inner and
 outer halves), a vertical glabella line with the corrugator, a nasion line with the procerus,
 crow's feet with the orbicularis oculi, and a deeper nasolabial fold with the zygomatic major and
-the levators. Lines are placed from landmarks, in fractions of the head height; rigs without the
-landmarks they need get no creases.
+the levators, which ends short of the mouth corner. Lines are placed from landmarks, in fractions
+of the head height; rigs without the landmarks they need get no creases.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 FOREHEAD_LINES_REL = (0.09, 0.135, 0.18)
 """Heights of the three forehead lines above the mid-brow landmark, × the head height."""
@@ -38,6 +39,10 @@ CROWS_FEET_WIDTH_REL, CROWS_FEET_DEPTH_REL = 0.005, 0.003
 NASOLABIAL_END_REL = (0.035, -0.03, -0.01)
 """End of the nasolabial fold from the mouth corner: outward, down, back (it starts at the alar base)."""
 NASOLABIAL_WIDTH_REL, NASOLABIAL_DEPTH_REL = 0.008, 0.007
+NASOLABIAL_CLEAR_REL = 0.02
+"""The nasolabial fold fades out within this × the head height (4 mm) of the lips (of the mouth
+corner on a rig without lip regions): it ends at the modiolus, and the thin triangles where the
+lips' rows converge at a corner must move as one."""
 NASION_HALF_LENGTH_REL, NASION_WIDTH_REL, NASION_DEPTH_REL = 0.03, 0.006, 0.005
 FRONT_Z_REL = 0.15
 """Skin in front of z = this × the head height is the face a crease line may be placed on."""
@@ -99,6 +104,7 @@ def find_creases(
     landmark_names: set[str],
     channel_names: set[str],
     scale: float,
+    lips: np.ndarray | None = None,
 ) -> tuple[Crease, ...]:
     """The crease lines of a rest mesh (see the module docstring).
 
@@ -114,6 +120,8 @@ def find_creases(
         The rig's landmarks and channels: creases whose landmarks or channels are missing are left out.
     scale : float
         The head height, rig units.
+    lips : (l,) int64, optional
+        The lips' vertices, which the nasolabial fold stays clear of.
     """
     if not set(NEEDED) <= landmark_names:
         return ()
@@ -125,7 +133,16 @@ def find_creases(
         """The rest front-skin vertex nearest to (x, y) seen from the front."""
         return vertices[front[np.argmin((vertices[front, 0] - x) ** 2 + (vertices[front, 1] - y) ** 2)]]
 
-    def add(name: str, gains: dict[str, float], a: np.ndarray, b: np.ndarray, width: float, depth: float):
+    def add(
+        name: str,
+        gains: dict[str, float],
+        a: np.ndarray,
+        b: np.ndarray,
+        width: float,
+        depth: float,
+        clear: np.ndarray | None = None,
+    ):
+        """One crease from ``a`` to ``b`` (3,); faded out near the points ``clear`` (k, 3)."""
         gains = {c: g for c, g in gains.items() if c in channel_names}
         if not gains:
             return
@@ -134,6 +151,10 @@ def find_creases(
             np.exp(-((dist / (width * s)) ** 2))
             * np.sin(np.pi * (TAPER_MARGIN + (1 - 2 * TAPER_MARGIN) * t)) ** 0.5
         )
+        if clear is not None:  # (1 − (1 − d/r)²)² within r of the nearest of the points
+            d, _ = cKDTree(clear).query(vertices[skin])
+            x = np.clip(d / (NASOLABIAL_CLEAR_REL * s), 0.0, 1.0)
+            w = w * (1.0 - (1.0 - x) ** 2) ** 2
         keep = w > MIN_WEIGHT
         ids = skin[keep]
         out.append(Crease(name, gains, ids, -(depth * w[keep])[:, None] * normals[ids]))
@@ -171,9 +192,8 @@ def find_creases(
             )
             gains = {f"orbicularis_oculi_outer_{side}": 1.0, f"orbicularis_oculi_{side}": 1.0}
             add(f"crows_feet_{k + 2}_{side}", gains, a, b, CROWS_FEET_WIDTH_REL, CROWS_FEET_DEPTH_REL)
-        end = landmark(f"mouth_corner_{side}") + s * np.array(
-            [sx * NASOLABIAL_END_REL[0], *NASOLABIAL_END_REL[1:]]
-        )
+        mouth_corner = landmark(f"mouth_corner_{side}")
+        end = mouth_corner + s * np.array([sx * NASOLABIAL_END_REL[0], *NASOLABIAL_END_REL[1:]])
         gains = {f"{m}_{side}": 1.0 for m in ("zygomatic_major", "levator_labii_mid", "levator_labii_nasal")}
         add(
             f"nasolabial_{side}",
@@ -182,6 +202,7 @@ def find_creases(
             end,
             NASOLABIAL_WIDTH_REL,
             NASOLABIAL_DEPTH_REL,
+            clear=vertices[lips] if lips is not None and len(lips) else mouth_corner[None],
         )
     nasion = landmark("nasion")
     half = np.array([NASION_HALF_LENGTH_REL * s, 0.0, 0.0])
