@@ -244,9 +244,9 @@ def default_rig_and_lips():
             "vector",
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="known gap (issue 11): the vector engine's pucker squeezes two lip triangles "
-                "beside the upper lip's middle flat (x-reversed by the incisivi), and the protrusion "
-                "turns them over",
+                reason="known gap (issue 11): the vector engine's pucker (sphincter and incisivi) "
+                "squeezes two lip triangles beside the upper lip's middle almost flat along x, and "
+                "the protrusion turns them over",
             ),
         ),
     ],

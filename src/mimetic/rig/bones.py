@@ -46,8 +46,9 @@ CORNER_JAW = 0.5
 CORNER_CORE = 0.1
 """Lip skin this near a mouth corner (× half the mouth width, 2.5 mm) takes exactly CORNER_JAW: the
 corner's slivers, where the lips' rows converge, move as one instead of shearing flat."""
-UPPER_LIP_REACH = 0.9
-"""The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width."""
+UPPER_LIP_REACH = 0.85
+"""The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width (the upper
+lip's middle then follows the jaw less than ICT's own jawOpen does, on ICT's identity heads too)."""
 LOWER_LIP_REACH = 1.0
 """The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width: all the way to the
 mouth's middle, so no edge across the lower lip opens wide near a corner."""
