@@ -125,11 +125,13 @@ def _clearance(
     return np.where(within, uvw[:, 1] - np.interp(uvw[:, 0], u, v), np.inf)
 
 
-def prepare_lid_contacts(rig: Rig) -> list[EyeContact]:
-    """The rig's lid contacts (``Rig.anatomy.lids``), per eye, with what the chain needs at rest."""
+def prepare_lid_contacts(rig: Rig, weights: sp.csc_matrix | None = None) -> list[EyeContact]:
+    """The rig's lid contacts (``Rig.anatomy.lids``), per eye, with what the chain needs at rest.
+
+    ``weights``: the rig's skin weights as CSC, when the caller has them (converted otherwise)."""
     out = []
     v = rig.mesh.vertices
-    weights = rig.skin_weights.tocsc()
+    weights = rig.skin_weights.tocsc() if weights is None else weights
     for side in ("L", "R"):
         layers_of = [c for c in rig.anatomy.lids if c.side == side]
         needed = ["head", f"eye_{side}", f"eyelid_upper_{side}"]
@@ -362,7 +364,6 @@ class Chain:
             self.skull = LinearNDInterpolator(surface[:, :2], surface[:, 2])
         v = rig.mesh.vertices
         self.lids = []
-        dense = rig.skin_weights.tocsc()
         for side in ("L", "R"):
             if f"eye_{side}" not in rig.bone_names:
                 continue
@@ -371,7 +372,7 @@ class Chain:
             ]
             for lid in ("upper", "lower"):  # and whatever the lid bones move (skin the lid stretches)
                 if f"eyelid_{lid}_{side}" in rig.bone_names:
-                    column = dense[:, rig.bone_index(f"eyelid_{lid}_{side}")]
+                    column = self.weights[:, rig.bone_index(f"eyelid_{lid}_{side}")]
                     ids.append(column.indices[column.data >= LID_SCULPTED_WEIGHT])
             ids = np.unique(np.concatenate(ids)).astype(np.int64)
             bone = rig.bone(f"eye_{side}")
@@ -382,7 +383,7 @@ class Chain:
             height = np.minimum(dist - limit, LID_THICKNESS_REL * rig.scale)[outside]
             self.lids.append((ids[outside], rig.bone_index(f"eye_{side}"), bone.head, bone.tail, height))
         self.accessories = anatomy.accessories
-        self.lid_contacts = prepare_lid_contacts(rig)
+        self.lid_contacts = prepare_lid_contacts(rig, self.weights)
 
     def _eyeball_clearance(self, points: np.ndarray, centre: np.ndarray, gaze: np.ndarray) -> tuple:
         """Distances (k,) of points from the eye centre and the sculptor's limit (k,) for each."""

@@ -60,8 +60,8 @@ class Bump:
     radii_rel : (3,) float
         Semi-axes along x, y, z, × head height.
     slide_rel : (3,) float
-        Motion at the bump's centre at full activation, × head height, slid onto the surface; x to
-        the bump's own side.
+        Motion at the bump's centre at full activation, × head height, slid onto the surface (a
+        ``mass`` moves by it unslid); x to the bump's own side.
     bulge_rel : float
         Motion along the outward normal at the centre at full activation, × head height.
     sided : bool
@@ -118,7 +118,7 @@ class Surface:
 
 
 BUMPS: tuple[Bump, ...] = (
-    # (name, channel, anchor, centre_rel, radii_rel, slide_rel, bulge_rel[, sided]), see ``Bump``
+    # (name, channel, anchor, centre_rel, radii_rel, slide_rel, bulge_rel[, sided, mass]), see ``Bump``
     # the upper face: the frontalis sheet, the brow depressors, the cheek raiser, the lower lid
     # browInnerUp: the inner forehead rises with the brow
     Bump(
