@@ -1,6 +1,6 @@
 """Deformation engines: activations in, vertex positions out.
 
-``make_engine(rig, "wire" | "vector")`` prepares an engine; ``engine.deform(pose) -> (n, 3)``.
+``make_engine(rig, "wire" | "vector" | "fem")`` prepares an engine; ``engine.deform(pose) -> (n, 3)``.
 Every engine runs the thesis's chain after its muscle stage (skull, creases, skinning, lid
 sculptors) and can be baked to a linear ``Basis`` with ``bake(engine).basis``;
 ``evaluate_basis(basis, activations)`` then gives the vertices of any number of frames fast.
@@ -18,7 +18,7 @@ from mimetic.rig.model import Rig
 
 __all__ = ["ENGINES", "Basis", "Engine", "bake", "evaluate_basis", "make_engine"]
 
-ENGINES = ("wire", "vector")
+ENGINES = ("wire", "vector", "fem")
 
 
 class Engine(Protocol):
@@ -44,6 +44,10 @@ def make_engine(rig: Rig, name: str = "wire", **options) -> Engine:
         from mimetic.engines.vector import VectorEngine
 
         return VectorEngine(rig, **options)
+    if name == "fem":
+        from mimetic.engines.fem import FemEngine
+
+        return FemEngine(rig, **options)
     from mimetic.errors import MimeticError
 
     raise MimeticError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")

@@ -121,7 +121,9 @@ def _anatomy(
         skull=forehead_skull(v, regions, scale),
         lip_contact=lips,
         accessories=find_accessories(mesh, scale, skin_weights),
-        thickness_rel=tissue_thickness(v, skin_faces, skin, regions, scale),
+        thickness_rel=tissue_thickness(
+            v, f[mesh.parts["skin"]] if "skin" in mesh.parts else skin_faces, skin, regions, scale
+        ),
         lids=find_lid_contacts(v, f, mesh.parts, regions, corners),
         actions=_into_cavity(
             find_actions(
@@ -162,29 +164,46 @@ def tissue_normals(vertices: np.ndarray, faces: np.ndarray, lips: np.ndarray, sc
     return np.divide(smooth, size, out=np.zeros_like(smooth), where=size > 1e-12)
 
 
-def _into_cavity(
-    actions: tuple[Action, ...], vertices: np.ndarray, faces: np.ndarray, cavity: np.ndarray, length: float
-) -> tuple[Action, ...]:
-    """``actions`` carried on from the skin into the mouth cavity (``cavity`` (c,) vertices), so the
-    cavity's rim moves with the lip it continues and the mouth does not open at the seam between them
-    (a cheek puff tore the default head's mouth corner open there).
+def cavity_links(
+    vertices: np.ndarray, faces: np.ndarray, cavity: np.ndarray, length: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How the mouth cavity (``cavity`` (c,) vertices) follows the skin it continues.
 
-    Each cavity vertex within ``length`` of the seam (the skin vertices of ``faces`` that share a face
-    with the cavity) takes the offset of its nearest seam vertex times the falloff ``(1 − (d /
+    Each cavity vertex within ``length`` of the seam (the vertices of ``faces`` outside the cavity
+    that share a face with it) follows its nearest seam vertex with the falloff ``(1 − (d /
     length)²)²``. By distance, not over the cavity's triangles, which need not be mirror-symmetric
-    where the head is."""
-    if not actions or not len(cavity):
-        return actions
+    where the head is.
+
+    Returns
+    -------
+    ids, source : (m,) int64
+        The cavity vertices that follow, and the seam vertex each follows.
+    fall : (m,) float64
+        How much of its seam vertex's motion each takes, in (0, 1].
+    """
+    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    if not len(cavity):
+        return empty
     inside = np.zeros(len(vertices), dtype=bool)
     inside[cavity] = True
     touching = faces[inside[faces].any(axis=1)].ravel()
     seam = np.unique(touching[~inside[touching]])
     if not len(seam):
-        return actions
+        return empty
     dist, nearest = cKDTree(vertices[seam]).query(vertices[cavity])
     near = dist < length
-    ids, source = cavity[near], seam[nearest[near]]
-    fall = (1.0 - (dist[near] / length) ** 2) ** 2  # (m,)
+    return cavity[near], seam[nearest[near]], (1.0 - (dist[near] / length) ** 2) ** 2
+
+
+def _into_cavity(
+    actions: tuple[Action, ...], vertices: np.ndarray, faces: np.ndarray, cavity: np.ndarray, length: float
+) -> tuple[Action, ...]:
+    """``actions`` carried on from the skin into the mouth cavity (``cavity_links``), so the cavity's
+    rim moves with the lip it continues and the mouth does not open at the seam between them (a cheek
+    puff tore the default head's mouth corner open there)."""
+    ids, source, fall = cavity_links(vertices, faces, cavity, length)
+    if not actions or not len(ids):
+        return actions
     out = []
     for action in actions:
         row = np.full(len(vertices), -1)

@@ -55,7 +55,8 @@ def tissue_thickness(
     vertices : (n, 3) float64
         The rest mesh, rig units.
     faces : (m, 3) int64
-        The faces of the deformable surface (the blending follows them).
+        The faces the blending follows: the outer skin (the ``skin`` part), whose triangles are as
+        mirror-symmetric as the head, so the thickness is too (a mouth cavity's need not be).
     skin : (s,) int64
         The skin vertices.
     regions : Mapping[str, (k,) int64]
