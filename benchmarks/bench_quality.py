@@ -1,7 +1,7 @@
 """Benchmark motion quality (issue 11, "Faces that move like faces"): stretch at the ICT-matched jaw drop,
 lips, lids and expression fidelity, per head and engine.
 
-    python benchmarks/bench_quality.py [--quick] [--tables abc|de]
+    python benchmarks/bench_quality.py [--quick] [--tables abc|de] [--engines wire,vector,fem,...]
 
 The definitions are ``mimetic.quality``'s (its module docstring); this script only builds the heads,
 poses them and prints. Lengths are in cm (every head here is in cm).
@@ -24,7 +24,7 @@ Face set (the edges and triangles that count): ICT's "Face" part (vertices 0..94
 topology; the front skin (chart directions z > 0.3) of a generated head; MediaPipe's faces minus the
 46 that close its mouth slit and eye openings.
 
-Tables (engines: wire and vector):
+Tables (every engine, or those named by ``--engines``):
 
 a. Jaw: ``jaw_open`` alone at the value whose chin drop equals ICT's ``jawOpen`` shape's: on ICT's
    topology the drop of that shape at ICT's menton vertex (iBUG 8) on that head (4.05 cm), elsewhere
@@ -62,6 +62,7 @@ import numpy as np
 
 from bench_rig import print_table, verdict  # the same tables as the fit benchmark
 from mimetic.animate.expressions import expression_pose, load_library
+from mimetic.engines import ENGINES as ALL_ENGINES
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.fit.pipeline import rig_head
@@ -101,7 +102,8 @@ from mimetic.testing import (
     shared_data_dir,
 )
 
-ENGINES = ("wire", "vector")
+ENGINES = tuple(ALL_ENGINES)
+"""The engines measured (``--engines``); default: every engine."""
 GOAL_WIDEST_CM = 0.3
 GOAL_LID_GAP_CM = 0.1
 CROSSING_TOL_CM = 0.01
@@ -487,11 +489,10 @@ def fidelity(heads: Heads, case: Case, engine_name: str):
 
 
 def tables_de(heads: Heads, quick: bool) -> None:
-    runs = [(heads.ict_auto(), "wire"), (heads.ict_auto(), "vector"), (heads.ict_file(), "wire")]
-    if not quick:
-        runs.append((heads.ict_file(), "vector"))
+    runs = [(heads.ict_auto(), e) for e in ENGINES]
+    runs += [(heads.ict_file(), e) for e in (ENGINES[:1] if quick else ENGINES)]
     identities = QUICK_FIDELITY_IDENTITIES if quick else FIDELITY_IDENTITIES
-    identity_engines = ("wire",) if quick else ENGINES
+    identity_engines = ENGINES[:1] if quick else ENGINES
     runs += [(heads.identity(seed, sigma), e) for seed, sigma in identities for e in identity_engines]
     begin = time.perf_counter()
     results = {}
@@ -574,7 +575,17 @@ def main() -> None:
         default="abcde",
         help="which tables to print: 'abc' (jaw, lips, lids; fast) and/or 'de' (fidelity; slow); default all",
     )
+    parser.add_argument(
+        "--engines",
+        default=",".join(ALL_ENGINES),
+        help=f"comma-separated engines to measure (default: all, {','.join(ALL_ENGINES)})",
+    )
     args = parser.parse_args()
+    global ENGINES
+    ENGINES = tuple(e for e in args.engines.split(",") if e)
+    unknown = set(ENGINES) - set(ALL_ENGINES)
+    if unknown:
+        parser.error(f"unknown engines {sorted(unknown)}; choose from {', '.join(ALL_ENGINES)}")
     begin = time.perf_counter()
     print(
         f"load average {os.getloadavg()[0]:.2f} at start; "

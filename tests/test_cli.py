@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from mimetic.engines import ENGINES
 from mimetic.head.model import make_head
 from mimetic.mesh.io import load_mesh, save_mesh
 from mimetic.mesh.model import Mesh
@@ -94,6 +95,8 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         "default_views.png",
         "heads_muscles.png",
         "expressions_closeup.png",
+        *(f"muscles_{engine}.png" for engine in ENGINES),
+        *(f"expressions_{engine}.png" for engine in ENGINES if engine != "wire"),
     ):
         assert (out / name).stat().st_size > 1000, name
     assert len(list((out / "rigs").glob("seed_*.mrig"))) == 8

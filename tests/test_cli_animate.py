@@ -77,12 +77,13 @@ def test_bad_input_is_one_line_and_writes_nothing(files, args, message, code):
     assert not out.exists() and not (folder / "never.avi").exists()
 
 
-def test_animate_exports_an_animated_glb(files):
+@pytest.mark.parametrize("engine", ["wire", "fem"])
+def test_animate_exports_an_animated_glb(files, engine):
     from mimetic.export.gltf import read_glb_summary
 
     rig_file, clip_file, folder = files
-    out = folder / "anim.glb"
-    result = run_cli("animate", rig_file, "--clip", clip_file, "--fps", "24", "-o", out)
+    out = folder / f"anim_{engine}.glb"
+    result = run_cli("animate", rig_file, "--clip", clip_file, "--fps", "24", "--engine", engine, "-o", out)
     assert result.exit_code == 0, result.output
     summary = read_glb_summary(out)
     rig = small_rig()

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from mimetic.engines import ENGINES
 from mimetic.mesh.io import load_mesh
 from mimetic.rig.format import save_rig
 from mimetic.testing import run_cli, small_rig
@@ -36,7 +37,7 @@ def test_pose_view_all_writes_a_three_view_sheet(rig_file, tmp_path):
     assert width == 3 * 64 and height > 64
 
 
-@pytest.mark.parametrize("engine", ["wire", "vector"])
+@pytest.mark.parametrize("engine", ENGINES)
 def test_pose_writes_the_posed_mesh_in_rig_vertex_order(rig_file, tmp_path, engine):
     from mimetic.animate.expressions import expression_pose
     from mimetic.engines import make_engine

@@ -37,6 +37,7 @@ from rich.table import Table
 from rich.text import Text
 
 from mimetic import __version__
+from mimetic.engines import ENGINES
 from mimetic.errors import MimeticError
 
 app = typer.Typer(
@@ -54,10 +55,9 @@ stderr = Console(
 )
 _state = {"debug": False}
 
-ENGINE_NAMES = ("wire", "vector")
 ViewName = Enum("ViewName", {v: v for v in ("front", "three_quarter", "profile")}, type=str)
 SheetView = Enum("SheetView", {v: v for v in ("front", "three_quarter", "profile", "all")}, type=str)
-EngineName = Enum("EngineName", {e: e for e in ENGINE_NAMES}, type=str)
+EngineName = Enum("EngineName", {e: e for e in ENGINES}, type=str)
 Interpolation = Enum("Interpolation", {i: i for i in ("step", "linear", "cubic", "tcb")}, type=str)
 Units = Enum("Units", {u: u for u in ("mm", "cm", "dm", "m", "in")}, type=str)
 

@@ -3,9 +3,10 @@
 Writes, into one folder: the default head as ``head.glb``, its rig ``default.mrig``, eight
 random heads with their rigs (``heads/seed_N.glb``, ``rigs/seed_N.mrig``), the default head from
 three angles (``default_views.png``) and a contact sheet of all nine heads with their muscles
-drawn (``heads_muscles.png``). For the default head it also writes the muscle sheets of both
-engines (``muscles_wire.png``, ``muscles_vector.png``: every muscle at full contraction), the
-expression sheets (``expressions.png`` with the wire engine, ``expressions_vector.png``), the close-ups
+drawn (``heads_muscles.png``). For the default head it also writes the muscle sheet of every
+engine (``muscles_wire.png``, ``muscles_vector.png``, ``muscles_fem.png`` …: every muscle at full
+contraction), its expression sheet (``expressions.png`` with the wire engine,
+``expressions_vector.png``, ``expressions_fem.png`` …), the close-ups
 of every expression's eyes and mouth corners (``expressions_closeup.png``, wire engine) and each
 library expression as a posed mesh and a face render (``expressions/NAME.obj``, ``NAME.png``,
 wire engine).
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mimetic.animate.expressions import expression_pose, load_library
-from mimetic.engines import Engine, make_engine
+from mimetic.engines import ENGINES, Engine, make_engine
 from mimetic.head.model import DEFAULT_RESOLUTION, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.io import save_mesh
@@ -68,7 +69,8 @@ def run_demo(
     files: list[Path] = []
     tiles = []
     jobs: list[int | None] = [None, *seeds]
-    total = len(jobs) + 5 + len(load_library().names) + len(ANIMATION_STEPS)  # heads, sheets, ...
+    sheets = 2 * len(ENGINES) + 1  # each engine's muscle and expression sheets, the close-ups
+    total = len(jobs) + sheets + len(load_library().names) + len(ANIMATION_STEPS)
     steps = iter(range(1, total + 1))
 
     def tick() -> None:
@@ -101,7 +103,7 @@ def run_demo(
         tick()
     files.append(save_png(contact_sheet(tiles, columns=6), out / "heads_muscles.png"))
     assert default_rig is not None  # jobs start with the default head
-    engines = {name: make_engine(default_rig, name) for name in ("wire", "vector")}
+    engines = {name: make_engine(default_rig, name) for name in ENGINES}
     files += _action_sheets(default_rig, engines, out, renderer, tick)
     files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer, tick)
     files += _animation(default_rig, engines["wire"], out, renderer, tick)

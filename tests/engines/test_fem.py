@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from mimetic.engines import make_engine
 from mimetic.engines.fem import POISSON, FemEngine, prepare_fem, stiffness_matrix
-from mimetic.engines.loads import calibration, muscle_loads, skin_areas
+from mimetic.engines.loads import muscle_loads, skin_areas
 from mimetic.engines.volume import FASCIA_DEPTH, TissueVolume, build_volume, prism_tets, tet_volumes
 from mimetic.rig.activations import pose
 from mimetic.testing import small_rig
@@ -127,15 +127,16 @@ def test_the_fem_basis_is_the_direct_solve_of_the_summed_loads():
     combination Σ aᵢ uᵢ to 1e-8 of its size, muscles only (the lids' mask is 1 away from the eyes)."""
     engine = fem()
     rig, volume = engine.rig, engine.volume
-    loads, work = muscle_loads(rig, volume)
+    loads = muscle_loads(rig, volume)
     solver = engine.solver
-    unit = solver.solve(loads.toarray())
-    scales = calibration(loads, work, unit[: 3 * volume.n_skin].reshape(volume.n_skin, 3, -1))
+    columns = np.arange(len(rig.channels))
+    unit = solver.solve(loads.forces.toarray())
+    scales = loads.calibration(unit[: 3 * volume.n_skin].reshape(volume.n_skin, 3, -1), columns)
     a = np.zeros(len(rig.channels))
     names = ("zygomatic_major_L", "orbicularis_oris", "frontalis_inner_R", "mentalis", "depressor_labii_L")
     for name, value in zip(names, (0.7, 0.4, 1.0, 0.3, 0.5), strict=True):
         a[rig.channel_index(name)] = value
-    rhs = loads @ (a * scales)
+    rhs = loads.forces @ (a * scales)
     K = solver.K[solver.free][:, solver.free].tocsc()
     direct = np.zeros(3 * volume.n_nodes)
     direct[solver.free] = sla.spsolve(K, rhs[solver.free])

@@ -1,27 +1,29 @@
 """The ``fem`` engine: linear finite-element skin with a muscle actuation basis (Choe, Lee & Ko 2001).
 
 Static linear elasticity on the layered tissue volume (``engines.volume``) with the skull nodes
-pinned: ``K q = F0 + Σ aᵢ Fᵢ``. ``F0 = K q_init`` holds the neutral, so in displacements ``K u =
-Σ aᵢ Fᵢ``: one sparse factorisation of ``K`` and one solve per muscle give each muscle's displacement
-field ``uᵢ``, and any expression is ``Σ aᵢ uᵢ`` (the paper's Eq. 9). The forces ``Fᵢ`` are the
-muscles' loads on the fascia (``engines.loads``); each is scaled so that the muscle does the same
-work on the skin as in the vector engine. Skin the eyelid bones hold follows the lids only
-(``common.muscle_mask``), and the shared chain (skull, creases and tissue actions, jaw and lids as
-bones, lid contact, accessories) runs after the tissue, as in every engine.
+pinned: ``K q = F0 + Σ aᵢ Fᵢ``. ``F0 = K q_init`` holds the neutral, so in displacements
+``K u = Σ aᵢ Fᵢ``: one sparse factorisation of ``K`` and one solve per muscle give each muscle's
+displacement field ``uᵢ``, and any expression is ``Σ aᵢ uᵢ`` (the paper's Eq. 9). The forces ``Fᵢ``
+are the muscles' loads on the fascia (``engines.loads``), each scaled so that the muscle does the
+vector engine's work on the skin without moving any skin farther than the vector engine's muscle
+does. Skin the eyelid bones hold follows the lids only (``common.muscle_mask``), and the shared
+chain (skull, creases and tissue actions, jaw and lids as bones, lid contact, accessories) runs
+after the tissue, as in every engine.
 
-Kernel: linear tetrahedra, element stiffness blocks ``K_ab = V (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a · g_b)
-I)`` for the shape-function gradients ``g`` and the Lamé parameters of Young's modulus ``E`` and
-Poisson's ratio ``ν``. Each prism is counted in all six of its three-tetrahedron splits (each a
-sixth of the stiffness), so the stiffness does not depend on how the vertices are numbered and a
-mirror-symmetric head deforms mirror-symmetrically. A weak nodal restoration (Lee et al.'s ``h``)
-ties every node to its rest place, so a piece of tissue with no pinned node (a floating part of a
-scan) still has a unique solution.
+Kernel: linear tetrahedra with the element stiffness blocks
+``K_ab = V (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a · g_b) I)`` for the shape-function gradients ``g`` and
+the Lamé parameters of Young's modulus ``E`` and Poisson's ratio ``ν``. Each prism is counted in all
+six of its three-tetrahedron splits (each a sixth of the stiffness), so the stiffness does not
+depend on how the vertices are numbered and a mirror-symmetric head deforms mirror-symmetrically.
+A weak nodal restoration (Lee et al.'s ``h``) ties every node to its rest place, so a piece of
+tissue with no pinned node (a floating part of a scan) still has a unique solution; the lips' deep
+nodes, which no bone holds, hang on springs to the gums (``LIP_ANCHOR``).
 
 Choices the paper leaves open: ``E`` relative (only the ratio between layers matters, since each
 muscle's amplitude is calibrated): the dermal-fatty layer 1, the muscle layer ``MUSCLE_LAYER_E``
-(softer, so the fascia slides over the bone); ``ν = POISSON`` (soft tissue is nearly incompressible;
-linear tetrahedra lock closer to 0.5); the jaw as a bone rather than a linearised force field (a
-jaw opens far beyond where a linear rotation holds).
+(softer, so the fascia slides over the bone); ``ν = POISSON`` (soft tissue is nearly
+incompressible; linear tetrahedra lock closer to 0.5); the jaw as a bone rather than a linearised
+force field (a jaw opens far beyond where a linear rotation holds).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from mimetic.engines.common import Chain, muscle_mask
-from mimetic.engines.loads import calibration, muscle_loads
+from mimetic.engines.loads import muscle_loads
 from mimetic.engines.volume import SPLIT_COUNTS, SPLITS, TissueVolume, build_volume, tet_volumes
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig
@@ -158,14 +160,14 @@ def prepare_fem(
 def fem_deltas(rig: Rig, volume: TissueVolume, solver: FemSolver) -> np.ndarray:
     """Skin displacements (c, n, 3) per unit of each channel (muscles; 0 for the others), rig units.
 
-    Each muscle's field is its solve ``K u = F`` on the skin nodes, scaled so that the muscle does the
-    vector engine's work (``loads.calibration``), times ``muscle_mask`` (the lids follow their bones).
+    Each muscle's field is its solve ``K u = F`` on the skin nodes, scaled as ``MuscleLoads.calibration``
+    says, times ``muscle_mask`` (the lids follow their bones).
     """
-    loads, work = muscle_loads(rig, volume)
-    active = np.flatnonzero(np.diff(loads.indptr) > 0)
-    u = solver.solve(loads[:, active].toarray())  # (3N, a)
+    loads = muscle_loads(rig, volume)
+    active = loads.active
+    u = solver.solve(loads.forces[:, active].toarray())  # (3N, a)
     skin = u[: 3 * volume.n_skin].reshape(volume.n_skin, 3, len(active))
-    skin *= calibration(loads[:, active], work[active], skin)[None, None, :]
+    skin *= loads.calibration(skin, active)[None, None, :]
     motion = volume.to_vertices(skin) * muscle_mask(rig)[:, None, None]  # (n, 3, a)
     deltas = np.zeros((len(rig.channels), rig.n_vertices, 3))
     deltas[active] = np.transpose(motion, (2, 0, 1))

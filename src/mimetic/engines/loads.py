@@ -8,13 +8,19 @@ linear, sheet and sphincter zones, the reversed mentalis, the lips' gate and the
 exactly that shape, so they are the force density here: a muscle's force on the fascia node under
 skin vertex ``i`` is its Waters motion at ``i`` times the skin area around ``i`` (so the load does
 not depend on the mesh's resolution). The forces are computed once on the rest geometry and are
-linear in the activations (``K q = F0 + Σ aᵢ Fᵢ``). Their unit (force per unit of the Waters
-field) is arbitrary: each engine scales each muscle's load so that it does the same work on the
-skin as the vector engine's muscle (``calibration``), which keeps the engines interchangeable under
-one set of control layers.
+linear in the activations (``K q = F0 + Σ aᵢ Fᵢ``).
+
+Their unit (force per unit of the Waters field) is arbitrary; each engine scales each muscle's load
+(``MuscleLoads.calibration``) so that the muscle does the same work on the skin as the vector
+engine's, unless that would move some skin farther than the vector engine's muscle moves any: then
+so that it moves it no farther. Work alone let a compliant spot (a thin lip hanging in front of
+the teeth) take all the motion: ICT's pucker pulled its lips into a beak. So the engines stay
+interchangeable under one set of control layers, and the tissue decides how the motion spreads.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,56 +32,64 @@ from mimetic.rig.model import Rig
 
 def skin_areas(volume: TissueVolume) -> np.ndarray:
     """Area (k,) around each skin node: a third of the area of its skin triangles, rig units squared."""
-    tets = volume.tets[volume.tet_layer == 0]
-    k = volume.n_skin
-    top = tets[(tets < k).sum(axis=1) == 3][:, :3]  # the tetrahedron holding each skin triangle
-    p = volume.nodes[top]
+    p = volume.nodes[volume.triangles]
     area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    return np.bincount(top.ravel(), np.repeat(area / 3.0, 3), minlength=k)
+    return np.bincount(volume.triangles.ravel(), np.repeat(area / 3.0, 3), minlength=volume.n_skin)
 
 
-def muscle_loads(rig: Rig, volume: TissueVolume) -> tuple[sp.csc_matrix, np.ndarray]:
-    """Nodal forces (3N, c) per unit activation of each channel, and the work each does in the vector
-    engine.
+@dataclass(frozen=True, eq=False)
+class MuscleLoads:
+    """Each channel's forces on the tissue at full activation, and what calibrates them.
 
-    Returns
-    -------
-    loads : (3N, c) scipy.sparse.csc_matrix
-        Row ``3 j + axis`` of node ``j`` (layer-major, ``TissueVolume``): forces on the fascia nodes
-        only; columns of non-muscle channels are empty.
+    Attributes
+    ----------
+    forces : (3N, c) scipy.sparse.csc_matrix
+        Row ``3 j + axis`` of node ``j`` (layer-major, ``TissueVolume``): forces on the fascia
+        nodes only; the columns of channels that are not muscles are empty.
     work : (c,) float64
-        ``Σ_j F_j · w_j``: each channel's load times the Waters motion ``w`` of the skin node above it
-        (0 for non-muscle channels). An engine whose skin moves ``u`` under the load calibrates the
-        muscle by ``work / Σ_j F_j · u_j`` (``calibration``), so the muscle does the same work on
-        the skin as in the vector engine: where the tissue spreads the motion, it moves less at the
-        insertion, as a physical muscle of the same strength would.
+        ``Σ_j F_j · w_j``: each channel's forces times the Waters motion ``w`` of the skin above them.
+    peaks : (c,) float64
+        The farthest any skin moves under the channel's Waters field, rig units.
     """
+
+    forces: sp.csc_matrix
+    work: np.ndarray
+    peaks: np.ndarray
+
+    @property
+    def active(self) -> np.ndarray:
+        """The channels (a,) with forces: the muscles."""
+        return np.flatnonzero(np.diff(self.forces.indptr) > 0)
+
+    def calibration(self, skin_motion: np.ndarray, columns: np.ndarray) -> np.ndarray:
+        """Scales (a,) of the forces of channels ``columns`` (a,) (module docstring), given the skin
+        nodes' displacement (k, 3, a) under each one's unscaled forces: ``work / Σ_j F_j · u_j``, at
+        most ``peaks / max_j |u_j|``; 0 where a channel moves nothing."""
+        k = skin_motion.shape[0]
+        force = self.forces[3 * k : 6 * k][:, columns].toarray().reshape(k, 3, -1)  # under each skin node
+        done = np.einsum("kic,kic->c", force, skin_motion)
+        farthest = np.linalg.norm(skin_motion, axis=1).max(axis=0)
+        moves = (np.abs(done) > 1e-300) & (farthest > 0)
+        by_work = np.divide(self.work[columns], done, out=np.zeros(len(columns)), where=moves)
+        by_peak = np.divide(self.peaks[columns], farthest, out=np.zeros(len(columns)), where=moves)
+        return np.minimum(by_work, by_peak)
+
+
+def muscle_loads(rig: Rig, volume: TissueVolume) -> MuscleLoads:
+    """Each channel's forces on the fascia of ``volume`` at full activation (``MuscleLoads``)."""
     deltas = vector_deltas(rig).tocsc()  # (3n, c) on rig vertices
     n, c = rig.n_vertices, len(rig.channels)
     motion = deltas.toarray().reshape(n, 3, c)
     k = volume.n_skin
     waters = motion[volume.surface]  # (k, 3, c) at the skin nodes
     field = waters * skin_areas(volume)[:, None, None]
-    work = np.einsum("kic,kic->c", field, waters)
     rows = (3 * (k + np.arange(k))[:, None] + np.arange(3)).ravel()  # the fascia node under each
     dense = field.reshape(3 * k, c)
     keep = np.flatnonzero(np.abs(dense).max(axis=1) > 0)
-    loads = sp.csc_matrix(
+    forces = sp.csc_matrix(
         (dense[keep].ravel(), (np.repeat(rows[keep], c), np.tile(np.arange(c), len(keep)))),
         shape=(3 * volume.n_nodes, c),
     )
-    loads.eliminate_zeros()
-    return loads, work
-
-
-def calibration(loads: sp.csc_matrix, work: np.ndarray, skin_motion: np.ndarray) -> np.ndarray:
-    """Scale (c,) of each channel's load so that it does ``work`` (c,) on the skin (``muscle_loads``).
-
-    ``skin_motion`` (k, 3, c): the skin nodes' displacement under each unscaled load (the first k
-    nodes carry the rows ``3 j + axis`` of the fascia node under skin node ``j``). 0 where a channel
-    has no load or moves nothing.
-    """
-    k = skin_motion.shape[0]
-    force = loads[3 * k : 6 * k].toarray().reshape(k, 3, -1)  # the fascia forces, under each skin node
-    done = np.einsum("kic,kic->c", force, skin_motion)
-    return np.divide(work, done, out=np.zeros_like(work), where=np.abs(done) > 1e-300)
+    forces.eliminate_zeros()
+    work = np.einsum("kic,kic->c", field, waters)
+    return MuscleLoads(forces, work, np.linalg.norm(waters, axis=1).max(axis=0))
