@@ -232,11 +232,10 @@ def _depths(
     depth = thickness * DEPTH_STEPS[-1]
     chosen = np.zeros(len(points), dtype=bool)
     near = min(NEIGHBOURS, len(samples))
-    reach = float(thickness.max())
-    nearby = np.zeros(len(points), dtype=bool)
-    if rigid is not None:  # only points within reach of a rigid part are measured to its triangles
+    if rigid is not None:
         edge = float(rigid.edges_unique_length.max())
-        nearby = cKDTree(rigid.vertices).query(points, distance_upper_bound=2 * reach + edge)[0] < np.inf
+        rigid_tree = cKDTree(rigid.vertices)
+        rigid_normals = rigid.vertex_normals
     for step in DEPTH_STEPS:
         d = thickness * step
         inner = points - d[:, None] * normals
@@ -244,11 +243,18 @@ def _depths(
         dist, idx = dist.reshape(len(points), -1), idx.reshape(len(points), -1)
         facing = np.einsum("kji,ki->kj", sample_normals[idx], normals) < -FACING
         clear = ~((lining[idx] | facing) & (dist < CLEARANCE * d[:, None])).any(axis=1)
-        test = ~chosen & clear & nearby
-        if test.any():
-            closest, gap, face = trimesh.proximity.closest_point(rigid, inner[test])
-            outside = np.einsum("ki,ki->k", inner[test] - closest, rigid.face_normals[face]) >= 0
-            clear[test] = outside & (gap >= CLEARANCE * d[test])
+        if rigid is not None:  # the nearest rigid vertex settles most points; the rest, its triangles
+            gap, at = rigid_tree.query(inner)
+            behind = np.einsum("ki,ki->k", inner - rigid.vertices[at], rigid_normals[at]) < 0
+            sure = (gap - edge >= CLEARANCE * d) & ~behind  # far outside
+            sure |= gap < CLEARANCE * d  # too near, or inside near the surface
+            sure |= behind & (gap > edge)  # deep inside
+            clear &= ~(gap < CLEARANCE * d) & ~(behind & (gap > edge))
+            test = ~chosen & clear & ~sure
+            if test.any():
+                closest, exact, face = trimesh.proximity.closest_point(rigid, inner[test])
+                outside = np.einsum("ki,ki->k", inner[test] - closest, rigid.face_normals[face]) >= 0
+                clear[test] = outside & (exact >= CLEARANCE * d[test])
         ok = ~chosen & clear
         depth[ok] = d[ok]
         chosen |= ok
@@ -288,7 +294,10 @@ def build_volume(rig: Rig) -> TissueVolume:
     on_surface = np.zeros(len(welded.vertices), dtype=bool)
     on_surface[deformable.ravel()] = True
     rigid_faces = welded.faces[~on_surface[welded.faces].any(axis=1)]  # eyes, teeth, tongue, ears
-    rigid = trimesh.Trimesh(welded.vertices, rigid_faces, process=False) if len(rigid_faces) else None
+    rigid = None
+    if len(rigid_faces):
+        kept, compact = np.unique(rigid_faces, return_inverse=True)
+        rigid = trimesh.Trimesh(welded.vertices[kept], compact.reshape(-1, 3), process=False)
     surface = np.flatnonzero(on_surface)
     lining = np.ones(len(welded.vertices), dtype=bool)
     lining[used] = False
