@@ -15,8 +15,11 @@ from mimetic.testing import small_rig
 
 @cache
 def baked(name: str, seed: int | None = None):
+    """An engine and its bake, with at most 12 correctives and 16 sample poses (fewer where the engine
+    bakes with fewer: the tissue engine takes none and 4)."""
     engine = make_engine(small_rig(seed), name)
-    return engine, bake(engine, correctives=12, samples=16)
+    correctives = min(12, getattr(engine, "bake_correctives", 12))
+    return engine, bake(engine, correctives=correctives, samples=min(16, getattr(engine, "bake_samples", 16)))
 
 
 @pytest.mark.parametrize("name", ENGINES)
@@ -48,7 +51,7 @@ def test_bake_reproduces_rest_and_each_channel_at_its_extreme(name):
 def test_bake_error_is_within_the_reported_bound(name):
     engine, result = baked(name)
     report = result.report
-    assert report.samples == 16
+    assert report.samples == min(16, getattr(engine, "bake_samples", 16))
     assert 0 <= report.max_error <= report.max_error_linear + 1e-12  # correctives never hurt the worst case
     assert report.rms_error <= report.max_error
     assert report.max_error < 0.1 * engine.rig.scale
@@ -61,7 +64,7 @@ def test_bake_error_is_within_the_reported_bound(name):
     assert any("bake error" in line for line in report.lines())
 
 
-@pytest.mark.parametrize("name", ENGINES)
+@pytest.mark.parametrize("name", [e for e in ENGINES if e != "tissue"])  # the tissue engine bakes none
 def test_bake_correctives_make_their_pairs_exact(name):
     engine, result = baked(name)
     rig, basis = engine.rig, result.basis

@@ -18,6 +18,9 @@ from mimetic.testing import small_head, small_rig
 
 SEEDS = (None, 3)
 FAR_FIELD_REL = {"wire": 0.0, "vector": 0.0, "fem": 1e-3, "tissue": 1e-3}
+SETTLED_REL = {"wire": 1e-12, "vector": 1e-12, "fem": 1e-12, "tissue": 5e-4}
+"""How far a vertex may fall back as an activation grows, × the head height: nowhere in the geometric
+and linear engines; the tissue engine's iterative solve settles the soft lips to about 0.1 mm."""
 """Motion allowed 0.4 head heights from a muscle's insertion, × the head height: none for the
 geometric engines; an elastic solid's response decays with distance but never reaches exactly 0
 (measured: 4e-4 for the fem engine's zygomatic major)."""
@@ -113,7 +116,7 @@ def test_engine_displacement_grows_monotonically_with_activation(name, seed):
             np.linalg.norm(deform(engine, **{muscle: a}) - rest, axis=1) for a in (0.25, 0.5, 0.75, 1.0)
         ]
         for lo, hi in pairwise(amounts):
-            assert np.all(hi >= lo - 1e-12), muscle
+            assert np.all(hi >= lo - SETTLED_REL[name] * engine.rig.scale), muscle
         assert amounts[-1].max() > amounts[0].max() * 1.5, muscle
 
 

@@ -1,6 +1,7 @@
 """Deformation engines: activations in, vertex positions out.
 
-``make_engine(rig, "wire" | "vector" | "fem")`` prepares an engine; ``engine.deform(pose) -> (n, 3)``.
+``make_engine(rig, "wire" | "vector" | "fem" | "tissue")`` prepares an engine;
+``engine.deform(pose) -> (n, 3)``.
 Every engine runs the thesis's chain after its muscle stage (skull, creases, skinning, lid
 sculptors) and can be baked to a linear ``Basis`` with ``bake(engine).basis``;
 ``evaluate_basis(basis, activations)`` then gives the vertices of any number of frames fast.
@@ -18,7 +19,7 @@ from mimetic.rig.model import Rig
 
 __all__ = ["ENGINES", "Basis", "Engine", "bake", "evaluate_basis", "make_engine"]
 
-ENGINES = ("wire", "vector", "fem")
+ENGINES = ("wire", "vector", "fem", "tissue")
 
 
 class Engine(Protocol):
@@ -48,6 +49,10 @@ def make_engine(rig: Rig, name: str = "wire", **options) -> Engine:
         from mimetic.engines.fem import FemEngine
 
         return FemEngine(rig, **options)
+    if name == "tissue":
+        from mimetic.engines.tissue import TissueEngine
+
+        return TissueEngine(rig, **options)
     from mimetic.errors import MimeticError
 
     raise MimeticError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")

@@ -85,12 +85,17 @@ def random_poses(engine: Engine, count: int, rng: np.random.Generator, density: 
 def bake(
     engine: Engine,
     *,
-    correctives: int = 24,
-    samples: int = 32,
+    correctives: int | None = None,
+    samples: int | None = None,
     seed: int = 0,
     progress: Progress | None = None,
 ) -> BakeResult:
-    """Linearise ``engine`` into a ``Basis`` with up to ``correctives`` pairwise terms; report its error."""
+    """Linearise ``engine`` into a ``Basis`` with up to ``correctives`` pairwise terms; report its error
+    over ``samples`` random poses. Both default to the engine's ``bake_correctives`` and
+    ``bake_samples`` where it has them (the tissue engine solves a pose in about a quarter of a second,
+    so it bakes without correctives and checks 4 poses), else to 24 and 32."""
+    correctives = getattr(engine, "bake_correctives", 24) if correctives is None else correctives
+    samples = getattr(engine, "bake_samples", 32) if samples is None else samples
     rig = engine.rig
     c = len(rig.channels)
     zero = np.array([ch.default for ch in rig.channels])

@@ -1,0 +1,866 @@
+"""The ``tissue`` engine: layered mass-spring tissue (Lee, Terzopoulos & Waters 1995), projective dynamics.
+
+The tissue volume under the skin (``engines.volume``: skin, fascia and skull nodes; two prisms per
+skin triangle, the dermal-fatty layer and the muscle layer) becomes a mass-spring body whose fascia
+the muscles pull (``engines.loads``). The physics gives the muscle-driven skin in the rest frame of
+the head; the shared chain (skull, creases and tissue actions, jaw and lids as bones, lid contact,
+accessories) runs afterwards, as in every engine.
+
+Model (Lee et al. §3; values are module constants):
+
+* **Springs**: the edges of every prism (its triangles, its vertical edges and both diagonals of
+  each quad, so the springs do not depend on how the volume split the prisms and a mirror-symmetric
+  head stays symmetric), in four classes by the layers of their ends: epidermal (skin-skin),
+  dermal-fatty (skin-fascia), fascia (fascia-fascia) and muscle layer (fascia-skull, skull-skull).
+  A spring's stiffness is ``E V / l₀²`` for its class's Young's modulus ``E``, its share ``V`` of
+  the volume of the prisms it belongs to (a fifteenth of each) and its rest length ``l₀``: the
+  energy density of a uniform strain is then ``E ε²/2`` whatever the mesh's resolution.
+* **Biphasic** dermal-fatty springs (Terzopoulos & Waters 1990): a second spring,
+  ``BIPHASIC_RATIO - 1`` times as stiff, takes up any length beyond ``1 ± BIPHASIC_STRAIN`` of the
+  rest length: soft at first, then stiff, stretched or compressed.
+* **Shape and volume** per prism (the paper's ``k2`` and ``k1`` terms): ``F = xᵀ G``, the prism's
+  least-squares deformation gradient over its six nodes, is held near its rotation ``R`` (the rest
+  shape, turned as the prism turned: ``SHAPE_STIFFNESS``) and near determinant 1 (its rest volume:
+  ``VOLUME_STIFFNESS``, off with ``preserve_volume=False``), both times the layer's modulus and the
+  prism's volume. The shape term is what a spring network lacks: shear stiffness in the needle-thin
+  prisms at the mouth's corners, where springs alone let nodes swing freely. An inverted prism is
+  turned back (its nearest proper rotation, by SVD).
+* **Skull contact** (§3.7): each fascia node over a pinned skull node stays on the outer side of
+  the plane through its skull node across its normal, ``SKULL_GAP`` of its rest height above it,
+  and slides along it freely. The skull nodes the volume leaves loose (under the lips: no bone)
+  rest on the teeth and gums the same way (they may not sink below their rest place) and are tied
+  to it by ``LOOSE_ANCHOR``: without the teeth a lip rolled into the mouth under the platysma, and
+  without the tie the lips drifted. Contact is a stiff constraint (``SKULL_WEIGHT``): during a
+  simulation a node may sink a little under a strong push; ``equilibrium`` puts any node left
+  below its plane onto it (doing so after every time step as well pumped energy into the lips).
+* **Nodal restoration** ``h`` (§3.8): a zero-length spring to rest on every node, so weak that a
+  node alone on it would swing at ``RESTORATION_HZ`` (it only makes a floating piece well posed).
+* **Bone**: the volume's pinned skull nodes are fixed.
+* **Muscles**: ``loads @ activations`` as nodal forces on the fascia. Each muscle's load is scaled
+  once (``MuscleLoads.calibration``) from its response in the linearised tissue at rest
+  (``rest_stiffness``; one solve per muscle), so that it does the vector engine's work on the skin,
+  or moves no skin farther than the vector engine's muscle does.
+* **Mass and damping**: lumped masses from ``DENSITY`` and the prisms' volumes; mass-proportional
+  damping ``DAMPING_PER_S``. The head is ``HEAD_HEIGHT_M`` tall (``Rig.scale`` is its height in rig
+  units), so stiffness (Pa) and mass (kg) give real time scales: after a step in activation the skin
+  overshoots and settles within about 0.2 s.
+
+Solver: projective dynamics (Liu et al. 2013, Bouaziz et al. 2014). Every term above is a
+constraint ``w/2 |A x - p|²`` with a linear ``A`` shared by x, y and z, and ``p`` the projection of
+``A x`` onto the constraint. Alternating the local step (all projections, vectorised) with the
+global step (one solve of the constant ``Aᵀ W A + diag(h) [+ c M]``, prefactored once with
+``splu``, 3 right-hand sides) lowers the energy at every iteration; Anderson acceleration (Peng et
+al. 2018) mixes the last ``ANDERSON_DEPTH`` iterates, kept only when it lowers the energy too. The
+kernel works in SI units: positions in metres, forces in newtons, energy in joules.
+
+* ``equilibrium``: the static equilibrium (no inertia), to ``TOLERANCE_M`` (at most
+  ``STATIC_ITERATIONS``), from the linearised solution: ``TissueEngine.deform``.
+* ``step``: one implicit BDF2 time step (second order; it damps far less than backward Euler, so
+  the skin's follow-through survives), at most ``DYNAMIC_ITERATIONS``: ``TissueEngine.simulate``
+  divides each frame into steps of at most ``STEP_MAX_S``.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from mimetic.engines.common import Chain, muscle_mask
+from mimetic.engines.loads import muscle_loads
+from mimetic.engines.volume import TissueVolume, build_volume
+from mimetic.errors import ActivationError, MimeticWarning
+from mimetic.rig.activations import check_activations
+from mimetic.rig.model import Rig
+
+log = logging.getLogger(__name__)
+
+HEAD_HEIGHT_M = 0.23
+"""The physics treats the rig's head height (``Rig.scale``) as this many metres."""
+DENSITY = 1000.0
+"""Mass density of the tissue, kg/m³."""
+EPIDERMAL_E = 4000.0
+"""Young's modulus (Pa) of the epidermal springs (skin to skin): the skin is stiffer than the fat."""
+DERMAL_E = 1000.0
+"""Young's modulus (Pa) of the dermal-fatty springs (skin to fascia), their soft phase."""
+FASCIA_E = 2000.0
+"""Young's modulus (Pa) of the fascia springs (fascia to fascia)."""
+MUSCLE_LAYER_E = 500.0
+"""Young's modulus (Pa) of the muscle-layer springs (fascia to skull, skull to skull): the loose
+layer the fascia slides on."""
+BIPHASIC_STRAIN = 0.2
+"""Strain beyond which a dermal-fatty spring stiffens (stretched or compressed)."""
+BIPHASIC_RATIO = 5.0
+"""A dermal-fatty spring's stiffness beyond ``BIPHASIC_STRAIN`` over its stiffness within it."""
+SHAPE_STIFFNESS = 3.0
+"""Weight of a prism's shape term over its layer's modulus (dermal-fatty or muscle layer) times
+its volume."""
+VOLUME_STIFFNESS = 2.0
+"""Weight of a prism's volume term over its layer's modulus times its volume."""
+RESTORATION_HZ = 0.5
+"""Nodal restoration: a node alone on its zero-length spring to rest would swing at this frequency."""
+LOOSE_ANCHOR = 0.1
+"""A skull node the volume leaves loose (under the lips) is tied to its rest place by this × its
+elastic weight (its diagonal of ``Aᵀ W A``): the lips' inner side is bound to the gums by their
+lining, so the lips hang and roll but do not drift."""
+SKULL_GAP = 0.25
+"""A fascia node stays at least this fraction of its rest height above its skull node."""
+SKULL_WEIGHT = 1.0
+"""Weight of the skull contact over the node's own elastic weight (its diagonal of ``Aᵀ W A``)."""
+DAMPING_PER_S = 30.0
+"""Mass-proportional damping γ, 1/s: a node's velocity, left alone, decays as ``exp(-γ t)``."""
+STEP_MAX_S = 1.0 / 24.0
+"""The longest time step; ``simulate`` divides each frame into as many equal steps as needed."""
+TOLERANCE_M = 1e-5
+"""An iteration has converged when no node moved more than this (metres: 0.004 % of the head) in
+its global step."""
+STATIC_ITERATIONS = 60
+"""Most local/global iterations of an equilibrium."""
+DYNAMIC_ITERATIONS = 4
+"""Local/global iterations of a time step, at most (from the inertial prediction). Fewer than
+converge: the skin then lags a little more than the physics says (at 30 fps it reaches 31 % of a
+step in activation after one frame instead of 80 %) but still overshoots and settles."""
+UNIT_STEPS = 3
+"""Newton steps of the projection onto determinant 1 (``_unit_determinant``)."""
+POLAR_STEPS = 3
+"""Newton steps of the polar decomposition (``_rotations``); the SVD takes the prisms that have not
+converged to ``POLAR_TOLERANCE`` by then."""
+POLAR_TOLERANCE = 1e-4
+"""Largest change of the last polar Newton step (which leaves an error of about its square)."""
+ANDERSON_DEPTH = 5
+"""Previous iterates that Anderson acceleration mixes."""
+SPRING_PAIRS = np.array(
+    [
+        *[(0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3)],  # the triangles
+        *[(0, 3), (1, 4), (2, 5)],  # vertical
+        *[(0, 4), (1, 3), (1, 5), (2, 4), (2, 3), (0, 5)],  # the quads' diagonals
+    ]
+)
+"""The springs of a prism (top 0-2, bottom 3-5, node ``i + 3`` under node ``i``): its triangles'
+edges, its vertical edges and both diagonals of each quad."""
+
+
+# --------------------------------------------------------------------------- the model
+
+
+@dataclass(frozen=True, eq=False)
+class TissueModel:
+    """The layered tissue of a ``TissueVolume``, prepared for projective dynamics (SI units).
+
+    The energy is ``Σ_r w_r/2 |A_r x - p_r(x)|² + Σ_i h_i/2 |x_i - X_i|²``: each row ``A_r`` of the
+    sparse ``A`` (R, N) maps the node positions ``x`` (N, 3) to a 3-vector (a spring's edge, a
+    column of a prism's deformation gradient, a contact node's position), ``p_r`` projects it onto
+    its constraint, and ``w`` (R,) are the ``weights``. The rows come in three blocks (``blocks``):
+    springs (E), prisms (3 each), skull contact (S).
+
+    Attributes
+    ----------
+    rest : (N, 3) float64
+        Rest positions, metres (the volume's nodes × ``metres_per_unit``).
+    mass : (N,) float64
+        Lumped nodal masses, kg.
+    pinned : (N,) bool
+        Nodes fixed to the bone; ``free`` (f,) int64 are the others, the unknowns.
+    edges : (E, 2) int64
+        Spring end nodes; ``rest_lengths`` (E,) m; ``stiffness`` (E,) N/m; ``stiff_phase`` (E,) N/m,
+        the biphasic springs' extra stiffness beyond ``strain_limit`` (0 for the others); ``layer``
+        (E,) int64: 0 epidermal, 1 dermal-fatty, 2 fascia, 3 muscle layer.
+    prisms : (P, 6) int64
+        Nodes of each prism (a skin triangle's column in one layer; top 0-2, bottom 3-5);
+        ``prism_layer`` (P,) 0 dermal-fatty, 1 muscle layer; ``gradients`` (P, 6, 3) 1/m: the
+        prism's deformation gradient is ``F = xᵀ G`` for its nodes' positions ``x`` (6, 3);
+        ``shape_stiffness`` (P,) J, the weight of ``|F - R|²``; ``volume_stiffness`` (P,) J, of
+        ``|F - V|²`` (V the nearest matrix of determinant 1; zeros without volume preservation).
+    restoration : (N,) float64
+        Zero-length spring to rest on each node, N/m.
+    contact : (S,) int64
+        Nodes kept on the outer side of a plane: the fascia over pinned skull nodes, then the loose
+        skull nodes (on the teeth). ``contact_anchor`` (S, 3) m, a point of the plane (the skull
+        node under the fascia node; the loose node's rest place), ``contact_normal`` (S, 3)
+        outward, ``contact_gap`` (S,) m the least height over the anchor, ``contact_stiffness``
+        (S,) N/m.
+    damping : float
+        Mass-proportional damping, 1/s.
+    metres_per_unit : float
+        Metres per rig unit.
+    """
+
+    rest: np.ndarray
+    mass: np.ndarray
+    pinned: np.ndarray
+    free: np.ndarray
+    edges: np.ndarray
+    rest_lengths: np.ndarray
+    stiffness: np.ndarray
+    stiff_phase: np.ndarray
+    layer: np.ndarray
+    prisms: np.ndarray
+    prism_layer: np.ndarray
+    gradients: np.ndarray
+    shape_stiffness: np.ndarray
+    volume_stiffness: np.ndarray
+    restoration: np.ndarray
+    contact: np.ndarray
+    contact_anchor: np.ndarray
+    contact_normal: np.ndarray
+    contact_gap: np.ndarray
+    contact_stiffness: np.ndarray
+    strain_limit: float
+    damping: float
+    metres_per_unit: float
+    A: sp.csr_matrix = field(repr=False)
+    weights: np.ndarray = field(repr=False)
+    _free_rows: sp.csr_matrix = field(repr=False)  # A[:, free]
+    _gather: sp.csr_matrix = field(repr=False)  # A[:, free]ᵀ W: projections to the right-hand side
+    _offset: np.ndarray = field(repr=False)  # (R, 3) A[:, pinned] @ rest[pinned]
+    _matrix: sp.csc_matrix = field(repr=False)  # (f, f) A[:, free]ᵀ W A[:, free] + diag(h)
+    _factors: dict = field(repr=False)  # inertia coefficient -> splu factor
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.rest)
+
+    @property
+    def blocks(self) -> tuple[slice, slice, slice]:
+        """Row slices of ``A``: springs, prisms (3 each: the columns of F), skull contact."""
+        e, p = len(self.edges), 3 * len(self.prisms)
+        return slice(0, e), slice(e, e + p), slice(e + p, len(self.weights))
+
+    def factor(self, inertia: float = 0.0):
+        """The ``splu`` factor of the global matrix ``A_fᵀ W A_f + diag(h) + inertia M`` over the free
+        nodes (computed once per ``inertia``, 1/s²)."""
+        key = float(inertia)
+        if key not in self._factors:
+            matrix = self._matrix
+            if key:
+                matrix = (matrix + sp.diags(key * self.mass[self.free])).tocsc()
+            self._factors[key] = splu(
+                matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
+            )
+        return self._factors[key]
+
+
+def prism_topology(volume: TissueVolume) -> tuple[np.ndarray, np.ndarray]:
+    """The prisms (P, 6) of ``volume`` (a skin triangle's nodes in one layer, then the nodes under
+    them) and their layers (P,): 0 dermal-fatty (skin to fascia), 1 muscle layer (fascia to skull)."""
+    k, tri = volume.n_skin, np.asarray(volume.triangles, dtype=np.int64)
+    prisms = [np.concatenate([tri + layer * k, tri + (layer + 1) * k], axis=1) for layer in (0, 1)]
+    return np.concatenate(prisms), np.repeat([0, 1], len(tri))
+
+
+def prism_volumes(nodes: np.ndarray, prisms: np.ndarray) -> np.ndarray:
+    """Volumes (P,) of prisms (P, 6) over ``nodes`` (N, 3), top 0-2 over bottom 3-5: the divergence
+    theorem over its two triangles and three quads, each quad taken as the mean of its two
+    triangulations, so the volume does not depend on the order of the prism's nodes. Signed:
+    positive when the top triangle, counter-clockwise, faces away from the bottom."""
+    p = nodes[prisms]  # (P, 6, 3)
+    top, bottom = p[:, :3], p[:, 3:]
+    total = np.einsum("pi,pi->p", top[:, 0], np.cross(top[:, 1], top[:, 2]))
+    total -= np.einsum("pi,pi->p", bottom[:, 0], np.cross(bottom[:, 1], bottom[:, 2]))
+    for a, b in ((0, 1), (1, 2), (2, 0)):  # quad a, b, b', a' (outward with the top counter-clockwise)
+        q = (top[:, b], top[:, a], bottom[:, a], bottom[:, b])
+        for i, j, m in ((0, 1, 2), (0, 2, 3), (0, 1, 3), (1, 2, 3)):  # both triangulations, halved
+            total += 0.5 * np.einsum("pi,pi->p", q[i], np.cross(q[j], q[m]))
+    return total / 6.0
+
+
+def _spring_rows(edges: np.ndarray, n: int) -> sp.csr_matrix:
+    """Rows (E, n): ``x_j - x_i`` for each edge (i, j)."""
+    e = len(edges)
+    return sp.csr_matrix((np.tile([-1.0, 1.0], e), (np.repeat(np.arange(e), 2), edges.ravel())), shape=(e, n))
+
+
+def prepare_tissue(
+    volume: TissueVolume,
+    scale: float,
+    *,
+    preserve_volume: bool = True,
+    skull_contact: bool = True,
+    damping: float = DAMPING_PER_S,
+) -> TissueModel:
+    """Springs, prism terms, skull contact, masses and the global matrix of ``volume`` (module docstring).
+
+    Parameters
+    ----------
+    volume : TissueVolume
+        From ``build_volume(rig)``, in rig units.
+    scale : float
+        The head height in rig units (``Rig.scale``): ``HEAD_HEIGHT_M`` metres.
+    preserve_volume, skull_contact : bool
+        Include the prisms' volume terms; keep the fascia outside the skull.
+    damping : float
+        Mass-proportional damping, 1/s.
+    """
+    mpu = HEAD_HEIGHT_M / scale
+    rest = volume.nodes * mpu
+    n, k = volume.n_nodes, volume.n_skin
+    pinned = np.array(volume.pinned, dtype=bool)
+    free = np.flatnonzero(~pinned)
+    prisms, prism_layer = prism_topology(volume)
+    size = np.abs(prism_volumes(rest, prisms))  # (P,) m³
+
+    # 1. springs: the unique edges of the prisms, each with its share of their volume
+    pairs = np.sort(prisms[:, SPRING_PAIRS].reshape(-1, 2), axis=1)
+    keys, inverse = np.unique(pairs[:, 0] * n + pairs[:, 1], return_inverse=True)
+    edges = np.column_stack([keys // n, keys % n])
+    share = np.bincount(inverse, np.repeat(size / len(SPRING_PAIRS), len(SPRING_PAIRS)), len(keys))
+    lo, hi = np.sort(edges // k, axis=1).T  # the end nodes' layers: 0 skin, 1 fascia, 2 skull
+    layer = np.select([hi == 0, lo == 0, hi == 1], [0, 1, 2], 3)
+    keep = ~(pinned[edges[:, 0]] & pinned[edges[:, 1]])
+    edges, share, layer = edges[keep], share[keep], layer[keep]
+    lengths = np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=1)
+    young = np.array([EPIDERMAL_E, DERMAL_E, FASCIA_E, MUSCLE_LAYER_E])[layer]
+    stiffness = young * share / lengths**2  # (E,) N/m: a uniform strain ε stores E V ε²/2
+    stiff_phase = np.where(layer == 1, (BIPHASIC_RATIO - 1.0) * stiffness, 0.0)
+
+    # 2. prisms: F = xᵀ G with G = C (CᵀC)⁻¹ for the centred rest positions C (6, 3), so F = I at rest
+    centred = rest[prisms] - rest[prisms].mean(axis=1, keepdims=True)  # (P, 6, 3)
+    gradients = centred @ np.linalg.inv(np.einsum("pai,paj->pij", centred, centred))
+    modulus = np.where(prism_layer == 0, DERMAL_E, MUSCLE_LAYER_E) * size  # (P,) J
+    shape_stiffness = SHAPE_STIFFNESS * modulus
+    volume_stiffness = VOLUME_STIFFNESS * modulus if preserve_volume else np.zeros(len(prisms))
+    p = len(prisms)
+    prism_rows = sp.csr_matrix(
+        (
+            gradients.ravel(),
+            (
+                np.broadcast_to(3 * np.arange(p)[:, None, None] + np.arange(3), (p, 6, 3)).ravel(),
+                np.broadcast_to(prisms[:, :, None], (p, 6, 3)).ravel(),
+            ),
+        ),
+        shape=(3 * p, n),
+    )
+    springs = _spring_rows(edges, n)
+    elastic = sp.vstack([springs, prism_rows]).tocsr()
+    w = np.concatenate([stiffness + stiff_phase, np.repeat(shape_stiffness + volume_stiffness, 3)])
+    diagonal = np.asarray((elastic.T @ sp.diags(w) @ elastic).diagonal()).ravel()  # (N,) N/m
+
+    # 3. skull contact: the fascia over pinned skull nodes; mass; restoration
+    fascia = np.flatnonzero(pinned[2 * k :]) + k
+    teeth = np.flatnonzero(~pinned[2 * k :]) + 2 * k  # loose skull nodes rest on the teeth and gums
+    contact = np.concatenate([fascia, teeth]) if skull_contact else np.zeros(0, dtype=np.int64)
+    fascia, teeth = contact[contact < 2 * k], contact[contact >= 2 * k]
+    anchor = np.concatenate([rest[fascia + k], rest[teeth]])
+    normal = np.asarray(volume.normals, dtype=np.float64)[contact % k]
+    gap = np.einsum("si,si->s", rest[contact] - anchor, normal) * SKULL_GAP  # 0 on the teeth
+    contact_stiffness = SKULL_WEIGHT * diagonal[contact]
+    contact_rows = sp.csr_matrix(
+        (np.ones(len(contact)), (np.arange(len(contact)), contact)), shape=(len(contact), n)
+    )
+    mass = np.bincount(prisms.ravel(), np.repeat(DENSITY * size / 6.0, 6), n)
+    restoration = mass * (2.0 * np.pi * RESTORATION_HZ) ** 2
+    loose = np.flatnonzero(~pinned[2 * k :]) + 2 * k
+    restoration[loose] += LOOSE_ANCHOR * diagonal[loose]
+
+    A = sp.vstack([elastic, contact_rows]).tocsr()
+    weights = np.concatenate([w, contact_stiffness])
+    free_rows = A[:, free].tocsr()
+    gather = (free_rows.T @ sp.diags(weights)).tocsr()
+    arrays = dict(
+        rest=rest,
+        mass=mass,
+        pinned=pinned,
+        free=free,
+        edges=edges,
+        rest_lengths=lengths,
+        stiffness=stiffness,
+        stiff_phase=stiff_phase,
+        layer=layer,
+        prisms=prisms,
+        prism_layer=prism_layer,
+        gradients=gradients,
+        shape_stiffness=shape_stiffness,
+        volume_stiffness=volume_stiffness,
+        restoration=restoration,
+        contact=contact,
+        contact_anchor=anchor,
+        contact_normal=normal,
+        contact_gap=gap,
+        contact_stiffness=contact_stiffness,
+    )
+    for array in arrays.values():
+        array.setflags(write=False)
+    log.debug(
+        "tissue: %d nodes (%d free), %d springs, %d prisms, %d contacts",
+        n,
+        len(free),
+        len(edges),
+        p,
+        len(contact),
+    )
+    return TissueModel(
+        **arrays,
+        strain_limit=BIPHASIC_STRAIN,
+        damping=float(damping),
+        metres_per_unit=mpu,
+        A=A,
+        weights=weights,
+        _free_rows=free_rows,
+        _gather=gather,
+        _offset=A[:, np.flatnonzero(pinned)] @ rest[pinned],
+        _matrix=(gather @ free_rows + sp.diags(restoration[free])).tocsc(),
+        _factors={},
+    )
+
+
+# --------------------------------------------------------------------------- the local step
+
+
+def _cofactor(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cofactors (9, P) and determinants (P,) of matrices given column-major as (9, P): row
+    ``3 j + i`` is ``F[i, j]``. The cofactor's columns are cross products of F's columns."""
+    c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z = c
+    cof = np.empty_like(c)
+    cof[0], cof[1], cof[2] = c1y * c2z - c1z * c2y, c1z * c2x - c1x * c2z, c1x * c2y - c1y * c2x
+    cof[3], cof[4], cof[5] = c2y * c0z - c2z * c0y, c2z * c0x - c2x * c0z, c2x * c0y - c2y * c0x
+    cof[6], cof[7], cof[8] = c0y * c1z - c0z * c1y, c0z * c1x - c0x * c1z, c0x * c1y - c0y * c1x
+    return cof, c0x * cof[0] + c0y * cof[1] + c0z * cof[2]
+
+
+def _rotations(c: np.ndarray, upright: np.ndarray) -> np.ndarray:
+    """The proper rotations (9, P) nearest to matrices (9, P) (column-major, ``_cofactor``).
+
+    ``POLAR_STEPS`` scaled Newton steps of the polar decomposition, ``R ← (ζ R + R⁻ᵀ/ζ)/2`` with ``ζ = |det
+    R|^(-1/3)`` (Higham 1986); where that has not converged (a matrix far from a rotation) or the
+    matrix is inverted (``upright`` False): ``U diag(1, 1, det UVᵀ) Vᵀ`` from its SVD.
+    """
+    r = np.where(upright, c, np.eye(3).reshape(9, 1))
+    for _ in range(POLAR_STEPS):
+        cof, det = _cofactor(r)  # R⁻ᵀ = cof R / det R
+        z = np.cbrt(det)
+        previous, r = r, (0.5 / z) * r + (0.5 * z / det) * cof
+    # Newton converges quadratically: a last step of δ leaves about δ²
+    bad = np.flatnonzero(~upright | ~(np.abs(r - previous).max(axis=0) <= POLAR_TOLERANCE))  # NaN too
+    if len(bad):
+        f = c[:, bad].reshape(3, 3, -1).transpose(2, 1, 0)  # (b, 3, 3): F[i, j]
+        u, _, vt = np.linalg.svd(f)
+        u[:, :, 2] *= np.sign(np.linalg.det(u @ vt))[:, None]
+        r[:, bad] = (u @ vt).transpose(2, 1, 0).reshape(9, -1)
+    return r
+
+
+def _unit_determinant(c: np.ndarray, upright: np.ndarray) -> np.ndarray:
+    """The nearest matrices (9, P) of determinant 1 to matrices (9, P) (``_cofactor``): three Newton
+    steps along the determinant's gradient (the cofactor), ``F - λ cof F`` with ``λ = (det F - 1) /
+    |cof F|²``. For an inverted matrix (``upright`` False) the same steps on its signed singular
+    values (``F = U diag(σ₁, σ₂, ±σ₃) Vᵀ``, U and V rotations), which lead to the branch of positive
+    determinant: the result is continuous as a prism passes through flat."""
+    v = c
+    for _ in range(UNIT_STEPS):
+        cof, det = _cofactor(v)
+        v = v - ((det - 1.0) / np.maximum(np.einsum("ap,ap->p", cof, cof), 1e-300)) * cof
+    bad = np.flatnonzero(~upright)
+    if len(bad):
+        f = c[:, bad].reshape(3, 3, -1).transpose(2, 1, 0)  # (b, 3, 3): F[i, j]
+        u, sigma, vt = np.linalg.svd(f)
+        sign = np.sign(np.linalg.det(u @ vt))
+        u[:, :, 2] *= sign[:, None]
+        sigma[:, 2] *= sign
+        for _ in range(UNIT_STEPS):
+            grad = np.stack(
+                [sigma[:, 1] * sigma[:, 2], sigma[:, 0] * sigma[:, 2], sigma[:, 0] * sigma[:, 1]], 1
+            )
+            lam = (sigma.prod(axis=1) - 1.0) / np.maximum(np.einsum("bi,bi->b", grad, grad), 1e-300)
+            sigma = sigma - lam[:, None] * grad
+        v[:, bad] = ((u * sigma[:, None, :]) @ vt).transpose(2, 1, 0).reshape(9, -1)
+    return v
+
+
+def _local(model: TissueModel, ax: np.ndarray) -> tuple[np.ndarray, float]:
+    """The local step: each row's projection ``p`` (R, 3) of ``ax = A x`` (R, 3), and the energy of
+    the constraints at ``ax``, joules.
+
+    Springs go to their rest length; contact nodes onto the outer side of their skull planes (free
+    to slide along them). Two terms share each biphasic spring's row and each prism's rows: the
+    soft spring (to ``l₀``) and the stiff phase (into ``[1 - ε, 1 + ε] l₀``); a prism's shape term
+    (F to its rotation R) and its volume term (to V, determinant 1). Two terms ``w₁/2 |y - p₁|² +
+    w₂/2 |y - p₂|²`` are one of weight ``w₁ + w₂`` and target ``(w₁ p₁ + w₂ p₂)/(w₁ + w₂)``, plus
+    ``w₁ w₂ / (2 (w₁ + w₂)) |p₁ - p₂|²`` (in the energy).
+    """
+    springs, prisms, contact = model.blocks
+    p = np.empty_like(ax)
+    d = ax[springs]
+    length = np.maximum(np.sqrt(np.einsum("ei,ei->e", d, d)), 1e-300)
+    rest, soft, stiff = model.rest_lengths, model.stiffness, model.stiff_phase
+    limited = np.clip(length, rest * (1.0 - model.strain_limit), rest * (1.0 + model.strain_limit))
+    target = (soft * rest + stiff * limited) / (soft + stiff)
+    p[springs] = d * (target / length)[:, None]
+    energy = 0.5 * (soft @ (length - rest) ** 2 + stiff @ (length - limited) ** 2)
+
+    c = np.ascontiguousarray(ax[prisms].reshape(-1, 9).T)  # (9, P): row 3 j + i is F[i, j]
+    upright = _cofactor(c)[1] > 0
+    rotation = _rotations(c, upright)
+    ws, wv = model.shape_stiffness, model.volume_stiffness
+    if wv.any():
+        unit = _unit_determinant(c, upright)
+        energy += 0.5 * (ws @ np.einsum("ap,ap->p", c - rotation, c - rotation))
+        energy += 0.5 * (wv @ np.einsum("ap,ap->p", c - unit, c - unit))
+        target = rotation + (wv / (ws + wv)) * (unit - rotation)
+    else:
+        energy += 0.5 * (ws @ np.einsum("ap,ap->p", c - rotation, c - rotation))
+        target = rotation
+    p[prisms] = target.T.reshape(-1, 3)
+
+    y = ax[contact]
+    height = np.minimum(
+        np.einsum("si,si->s", y - model.contact_anchor, model.contact_normal) - model.contact_gap, 0.0
+    )
+    p[contact] = y - height[:, None] * model.contact_normal
+    energy += 0.5 * (model.contact_stiffness @ height**2)
+    return p, float(energy)
+
+
+def project(model: TissueModel, ax: np.ndarray) -> np.ndarray:
+    """The local step: the projection ``p`` (R, 3) of each row of ``ax = A x`` (R, 3) (``_local``)."""
+    return _local(model, ax)[0]
+
+
+def internal_forces(model: TissueModel, x: np.ndarray) -> np.ndarray:
+    """The tissue's own forces (N, 3) on its nodes at positions ``x`` (N, 3) metres, newtons.
+
+    Springs and prism terms, ``-Aᵀ W (A x - p(A x))`` over their rows: they act between nodes, so
+    they sum to zero; a pinned node's entry is the force on the bone there. The ties to the ground
+    (restoration, skull contact) are not included.
+    """
+    ax = model.A @ x
+    tissue = slice(0, model.blocks[1].stop)
+    r = (ax[tissue] - project(model, ax)[tissue]) * model.weights[tissue, None]
+    return -(model.A[tissue].T @ r)
+
+
+def energy(model: TissueModel, x: np.ndarray, v: np.ndarray | None = None) -> float:
+    """Potential (springs, prisms, skull contact, restoration) plus kinetic energy, joules.
+
+    ``x`` (N, 3) metres; ``v`` (N, 3) m/s, or None for none.
+    """
+    d = x - model.rest
+    potential = _local(model, model.A @ x)[1] + 0.5 * np.einsum("n,ni,ni->", model.restoration, d, d)
+    kinetic = 0.0 if v is None else 0.5 * np.einsum("n,ni,ni->", model.mass, v, v)
+    return float(potential + kinetic)
+
+
+def inside_skull(model: TissueModel, x: np.ndarray) -> np.ndarray:
+    """How far (S,) metres each contact node of ``x`` (N, 3) lies inside its skull plane (its gap
+    above the skull node included); 0 or less is outside."""
+    c = model.contact
+    return model.contact_gap - np.einsum("si,si->s", x[c] - model.contact_anchor, model.contact_normal)
+
+
+def _clear_skull(model: TissueModel, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``x`` (N, 3) with every contact node below its plane moved onto it (in place), and which
+    contacts (S,) bool were moved."""
+    depth = inside_skull(model, x)
+    below = depth > 0
+    x[model.contact[below]] += depth[below, None] * model.contact_normal[below]
+    return x, below
+
+
+# --------------------------------------------------------------------------- the solvers
+
+
+@dataclass(frozen=True)
+class TissueResult:
+    """A static equilibrium and how the iteration went."""
+
+    x: np.ndarray  # (N, 3) float64 metres
+    success: bool
+    message: str  # e.g. "converged: largest step 8.1e-06 m < 1e-05 m after 14 iterations"
+    iterations: int
+    residuals: np.ndarray  # (iterations,) the largest node step of each global solve, metres
+
+
+def _iterate(
+    model: TissueModel, x: np.ndarray, constant: np.ndarray, inertia: float, limit: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Local/global iterations from ``x`` (N, 3) until no free node moves ``TOLERANCE_M``, at most
+    ``limit``; returns the positions and each step (metres).
+
+    Minimises ``Φ(x) = Σ w/2 |A x - p|² + Σ (h + inertia m)/2 |x|² - x · constant`` over the free
+    nodes: ``constant`` (f, 3) holds the free rows of ``inertia M s + f + diag(h) X`` (the inertia
+    ``inertia/2 |x - s|²_M``, the forces and the restoration, up to a constant). Every PD iteration
+    (local step, then one solve with the constant matrix) lowers Φ; an Anderson iterate (the last
+    ``ANDERSON_DEPTH`` steps mixed) is kept only if it lowers Φ too.
+    """
+    factor = model.factor(inertia)
+    free = model.free
+    diagonal = (model.restoration + inertia * model.mass)[free, None]
+
+    known = constant - model._gather @ model._offset  # the right-hand side's constant part
+
+    def local(xf: np.ndarray) -> tuple[np.ndarray, float]:
+        p, constraints = _local(model, model._free_rows @ xf + model._offset)
+        phi = constraints + np.einsum("fi,fi->", 0.5 * diagonal * xf - constant, xf)
+        return model._gather @ p + known, phi
+
+    xf = x[free]
+    rhs, phi = local(xf)
+    steps, residuals, images = [], [], []
+    for _ in range(limit):
+        g = factor.solve(rhs)
+        f = g - xf
+        steps.append(float(np.sqrt(np.einsum("ni,ni->n", f, f).max())))
+        if steps[-1] < TOLERANCE_M:
+            xf = g
+            break
+        residuals.append(f.ravel())
+        images.append(g.ravel())
+        del residuals[: -ANDERSON_DEPTH - 1], images[: -ANDERSON_DEPTH - 1]
+        candidate = g
+        if len(residuals) > 1 and ANDERSON_DEPTH:  # Anderson: g minus the mix of past steps cancelling f
+            df = np.diff(residuals, axis=0)  # (m, 3f)
+            gram = df @ df.T
+            gram += 1e-12 * np.trace(gram) * np.eye(len(gram))
+            gamma = np.linalg.solve(gram, df @ residuals[-1])
+            candidate = g - (gamma @ np.diff(images, axis=0)).reshape(g.shape)
+        new_rhs, new_phi = local(candidate)
+        if candidate is not g and not new_phi < phi:  # no lower: take the plain PD iterate
+            del residuals[:-1], images[:-1]
+            candidate = g
+            new_rhs, new_phi = local(g)
+        xf, rhs, phi = candidate, new_rhs, new_phi
+    out = x.copy()
+    out[free] = xf
+    return out, np.array(steps)
+
+
+def equilibrium(model: TissueModel, forces: np.ndarray, *, x0: np.ndarray | None = None) -> TissueResult:
+    """The static equilibrium under nodal ``forces`` (N, 3) newtons, from ``x0`` (N, 3) metres (rest).
+
+    Projective dynamics without inertia: ``(Aᵀ W A + diag(h)) x = Aᵀ W p(A x) + f + diag(h) X``,
+    iterated until no node moves ``TOLERANCE_M`` (at most ``STATIC_ITERATIONS``); contact nodes
+    left below the skull are put on it. Forces on pinned nodes do nothing. Not converging is not
+    an error: ``success`` is False and ``message`` says how far it got.
+    """
+    x = model.rest.copy() if x0 is None else np.array(x0, dtype=np.float64)
+    x[model.pinned] = model.rest[model.pinned]
+    constant = (forces + model.restoration[:, None] * model.rest)[model.free]
+    x, steps = _iterate(model, x, constant, 0.0, STATIC_ITERATIONS)
+    x = _clear_skull(model, x)[0]
+    last = steps[-1] if len(steps) else 0.0
+    success = bool(last < TOLERANCE_M)
+    verdict = "converged" if success else "did not converge"
+    relation = "<" if success else ">="
+    message = (
+        f"{verdict}: largest step {last:.2g} m {relation} {TOLERANCE_M:g} m after {len(steps)} iterations"
+    )
+    return TissueResult(x, success, message, len(steps), steps)
+
+
+@dataclass(frozen=True)
+class TissueState:
+    """A moment of a simulation: positions ``x`` (N, 3) metres and velocities ``v`` (N, 3) m/s, with
+    the previous step's (``x_prev``, ``v_prev``) for BDF2 and that step's length ``h`` (s; 0 for a
+    state at rest, whose past is the same rest whatever the step)."""
+
+    x: np.ndarray
+    v: np.ndarray
+    x_prev: np.ndarray
+    v_prev: np.ndarray
+    h: float = 0.0
+
+    @classmethod
+    def at_rest(cls, model: TissueModel) -> TissueState:
+        zero = np.zeros_like(model.rest)
+        return cls(model.rest.copy(), zero, model.rest.copy(), zero.copy(), 0.0)
+
+
+def step(model: TissueModel, state: TissueState, forces: np.ndarray, h: float) -> TissueState:
+    """The state ``h`` seconds later under nodal ``forces`` (N, 3) newtons: one implicit BDF2 step.
+
+    With ``β = 2h/3``, ``x̂ = (4 x - x_prev)/3`` and ``v̂ = (4 v - v_prev)/3`` (backward Euler:
+    ``β = h``, ``x̂ = x``, ``v̂ = v``, when the previous step was not ``h`` long), BDF2 with the
+    damping force ``-γ M v`` makes the new positions minimise ``c/2 |x - s|²_M + E(x) - x · f``
+    with ``c = 1/β² + γ/β`` and ``s = x̂ + β v̂ / (1 + γ β)``; then ``v = (x - x̂)/β``. Projective
+    dynamics from ``s``, at most ``DYNAMIC_ITERATIONS``; the matrix ``Aᵀ W A + diag(h) + c M`` is
+    factored once per ``h``.
+    """
+    if state.h in (0.0, h):
+        beta = 2.0 * h / 3.0
+        x_hat = (4.0 * state.x - state.x_prev) / 3.0
+        v_hat = (4.0 * state.v - state.v_prev) / 3.0
+    else:
+        beta, x_hat, v_hat = h, state.x, state.v
+    gamma = model.damping
+    c = 1.0 / beta**2 + gamma / beta
+    s = x_hat + (beta / (1.0 + gamma * beta)) * v_hat
+    constant = (c * model.mass[:, None] * s + forces + model.restoration[:, None] * model.rest)[model.free]
+    x, _ = _iterate(model, s, constant, c, DYNAMIC_ITERATIONS)
+    v = (x - x_hat) / beta
+    return TissueState(x, v, state.x, state.v, float(h))
+
+
+def rest_stiffness(model: TissueModel) -> sp.csr_matrix:
+    """The Hessian (3N, 3N) of the energy at rest, N/m: the linearised tissue, row ``3 j + axis``.
+
+    A spring stiffens only along itself (``w n nᵀ``), its stiff phase not at all (slack within the
+    strain limit); a prism's shape term resists its strain, ``w_s |sym δF|²`` (not a turn), its
+    volume term a change of volume, ``w_v/3 (tr δF)²``, with ``δF = Σ_a δx_a g_aᵀ``; the
+    restoration holds every node; the skull contact is slack.
+    """
+    n = model.n_nodes
+    axes = np.arange(3)
+    i, j = model.edges.T
+    d = model.rest[j] - model.rest[i]
+    unit = d / np.linalg.norm(d, axis=1, keepdims=True)
+    block = model.stiffness[:, None, None] * np.einsum("ei,ej->eij", unit, unit)  # (E, 3, 3)
+    ends = np.stack([np.stack([i, i], 1), np.stack([j, j], 1), np.stack([i, j], 1), np.stack([j, i], 1)], 1)
+    values = np.array([1.0, 1.0, -1.0, -1.0])[None, :, None, None] * block[:, None]  # (E, 4, 3, 3)
+    rows = np.broadcast_to(3 * ends[:, :, 0, None, None] + axes[:, None], values.shape)
+    cols = np.broadcast_to(3 * ends[:, :, 1, None, None] + axes, values.shape)
+    springs = sp.coo_matrix((values.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * n, 3 * n))
+    # prisms: vec(δF)[3 i + j] = Σ_a δx_a,i g_a,j, i.e. vec(δF) = D δx, D[(i, j), (a, k)] = δ_ik g_a,j
+    D = np.einsum("ik,paj->pijak", np.eye(3), model.gradients).reshape(-1, 9, 18)
+    swap = np.eye(9).reshape(3, 3, 3, 3).transpose(0, 1, 3, 2).reshape(9, 9)  # vec(δF) -> vec(δFᵀ)
+    hessian = model.shape_stiffness[:, None, None] * np.einsum(
+        "pba,bc,pcd->pad", D, 0.5 * (np.eye(9) + swap), D
+    )
+    trace = np.einsum("b,pbd->pd", np.eye(3).ravel(), D)  # (P, 18): tr δF = trace · δx
+    hessian += (model.volume_stiffness / 3.0)[:, None, None] * np.einsum("pa,pb->pab", trace, trace)
+    dof = (3 * model.prisms[:, :, None] + axes).reshape(-1, 18)
+    prisms = sp.coo_matrix(
+        (hessian.ravel(), (np.repeat(dof, 18, axis=1).ravel(), np.tile(dof, (1, 18)).ravel())),
+        shape=(3 * n, 3 * n),
+    )
+    return (springs.tocsr() + prisms.tocsr() + sp.diags(np.repeat(model.restoration, 3))).tocsr()
+
+
+# --------------------------------------------------------------------------- the engine
+
+
+def muscle_responses(model: TissueModel, forces: sp.spmatrix) -> np.ndarray:
+    """Displacements (3N, a) metres of the linearised tissue (``rest_stiffness``) under each column of
+    ``forces`` (3N, a) newtons; the pinned nodes stay."""
+    dof = (3 * model.free[:, None] + np.arange(3)).ravel()
+    factor = splu(
+        rest_stiffness(model)[dof][:, dof].tocsc(),
+        permc_spec="MMD_AT_PLUS_A",
+        diag_pivot_thresh=0.0,
+        options={"SymmetricMode": True},
+    )
+    out = np.zeros(forces.shape)
+    for j in range(forces.shape[1]):  # column by column: SuperLU's many-column solve is slower
+        out[dof, j] = factor.solve(forces[:, j].toarray().ravel()[dof])
+    return out
+
+
+class TissueEngine:
+    """Layered mass-spring tissue (projective dynamics) plus the shared chain; prepare once.
+
+    ``deform(values)`` gives the static equilibrium of one pose; ``simulate(values, fps)`` a clip
+    with inertia (the skin lags, overshoots and settles). Options: ``skull``, ``creases`` (the
+    chain's, as every engine), ``preserve_volume``, ``skull_contact`` and ``damping`` (1/s) for the
+    tissue (``prepare_tissue``).
+
+    Attributes beyond the ``Engine`` protocol's: ``volume`` (``TissueVolume``), ``model``
+    (``TissueModel``), ``muscles`` (a,) the channels with loads, ``forces`` (3N, a) their
+    calibrated nodal forces at full activation (newtons, sparse), ``linear`` (3N, a) the
+    linearised tissue's response to them (metres), where each equilibrium starts.
+    """
+
+    name = "tissue"
+    bake_correctives = 0  # a pose takes a solve: bake the channels alone (``engines.bake.bake``)
+    bake_samples = 4
+
+    def __init__(
+        self,
+        rig: Rig,
+        *,
+        skull: bool = True,
+        creases: bool = True,
+        preserve_volume: bool = True,
+        skull_contact: bool = True,
+        damping: float = DAMPING_PER_S,
+    ) -> None:
+        self.rig = rig
+        self.channels = rig.channel_names
+        self.volume = build_volume(rig)
+        self.model = prepare_tissue(
+            self.volume,
+            rig.scale,
+            preserve_volume=preserve_volume,
+            skull_contact=skull_contact,
+            damping=damping,
+        )
+        loads = muscle_loads(rig, self.volume)
+        self.muscles = loads.active  # (a,) channel indices
+        forces = loads.forces[:, self.muscles].tocsc()  # (3N, a), unscaled
+        linear = muscle_responses(self.model, forces)  # (3N, a) m
+        k = self.volume.n_skin
+        skin = linear[: 3 * k].reshape(k, 3, -1) / self.model.metres_per_unit
+        scale = loads.calibration(skin, self.muscles)  # (a,)
+        self.forces = (forces @ sp.diags(scale)).tocsc()  # (3N, a) newtons at full activation
+        self.linear = linear * scale  # (3N, a) metres: the linearised response, the iteration's start
+        self.mask = muscle_mask(rig)[:, None]  # (n, 1) the lids follow their bones
+        self.chain = Chain(rig, skull=skull, creases=creases)
+        self.model.factor(0.0)
+
+    def _muscle_values(self, values: np.ndarray) -> np.ndarray:
+        return values[..., self.muscles]
+
+    def _skin(self, x: np.ndarray) -> np.ndarray:
+        """Rest vertices (n, 3) moved by the tissue at node positions ``x`` (N, 3) metres."""
+        k = self.volume.n_skin
+        motion = (x[:k] - self.model.rest[:k]) / self.model.metres_per_unit
+        return self.rig.mesh.vertices + self.volume.to_vertices(motion) * self.mask
+
+    def deform(self, values: np.ndarray) -> np.ndarray:
+        """Vertex positions (n, 3) for one pose ``values`` (c,) in the rig's channel order: the
+        tissue's static equilibrium under the pose's muscles, then the chain. All muscles at rest
+        give the rest skin exactly."""
+        values = check_activations(self.rig, values)
+        if values.ndim != 1:
+            raise ValueError("deform takes one pose (c,); use simulate for clips, or bake a Basis")
+        a = self._muscle_values(values)
+        moved = self.rig.mesh.vertices
+        if np.any(a):
+            forces = (self.forces @ a).reshape(-1, 3)
+            start = self.model.rest + (self.linear @ a).reshape(-1, 3)
+            result = equilibrium(self.model, forces, x0=start)
+            log.debug("tissue equilibrium: %s", result.message)
+            if not result.success:
+                warnings.warn(
+                    f"tissue engine: the equilibrium {result.message}", MimeticWarning, stacklevel=2
+                )
+            moved = self._skin(result.x)
+        return self.chain.apply(moved, values)
+
+    def steps_per_frame(self, fps: float) -> int:
+        """Time steps ``simulate`` takes per frame at ``fps``: each at most ``STEP_MAX_S`` long."""
+        return max(1, int(np.ceil(1.0 / (fps * STEP_MAX_S) - 1e-9)))
+
+    def simulate(
+        self, values: np.ndarray, fps: float, *, progress: Callable[[int, int], None] | None = None
+    ) -> np.ndarray:
+        """Vertex positions (f, n, 3) of a clip ``values`` (f, c) at ``fps``, with the tissue's inertia.
+
+        The tissue starts at rest; each frame's activations are reached at its end, ramping linearly
+        from the previous frame's (from rest before the first), over ``steps_per_frame(fps)`` BDF2
+        steps (``step``); the chain runs on every frame.
+        """
+        values = check_activations(self.rig, values)
+        if values.ndim != 2:
+            raise ActivationError(
+                f"simulate takes a clip (frames, {len(self.channels)}); got shape {values.shape}"
+            )
+        if not (np.isfinite(fps) and fps > 0):
+            raise ActivationError(f"fps must be positive; got {fps}")
+        n_steps = self.steps_per_frame(fps)
+        h = 1.0 / (fps * n_steps)
+        a = self._muscle_values(values)  # (f, a)
+        state = TissueState.at_rest(self.model)
+        previous = np.zeros(a.shape[1])
+        out = np.empty((len(values), self.rig.n_vertices, 3))
+        for frame in range(len(values)):
+            for i in range(1, n_steps + 1):
+                now = previous + (a[frame] - previous) * (i / n_steps)
+                state = step(self.model, state, (self.forces @ now).reshape(-1, 3), h)
+            previous = a[frame]
+            out[frame] = self.chain.apply(self._skin(state.x), values[frame])
+            if progress is not None:
+                progress(frame + 1, len(values))
+        return out
