@@ -97,6 +97,8 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         "expressions_closeup.png",
         *(f"muscles_{engine}.png" for engine in ENGINES),
         *(f"expressions_{engine}.png" for engine in ENGINES if engine != "wire"),
+        "expressions_engines.png",
+        "jaw_drop_tissue.mp4",
     ):
         assert (out / name).stat().st_size > 1000, name
     assert len(list((out / "rigs").glob("seed_*.mrig"))) == 8

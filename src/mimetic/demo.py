@@ -6,7 +6,9 @@ three angles (``default_views.png``) and a contact sheet of all nine heads with 
 drawn (``heads_muscles.png``). For the default head it also writes the muscle sheet of every
 engine (``muscles_wire.png``, ``muscles_vector.png``, ``muscles_fem.png`` …: every muscle at full
 contraction), its expression sheet (``expressions.png`` with the wire engine,
-``expressions_vector.png``, ``expressions_fem.png`` …), the close-ups
+``expressions_vector.png``, ``expressions_fem.png`` …), the library on every engine side by side
+(``expressions_engines.png``), a jaw drop simulated by the tissue engine (``jaw_drop_tissue.mp4``:
+the lips and cheeks lag the jaw and settle), the close-ups
 of every expression's eyes and mouth corners (``expressions_closeup.png``, wire engine) and each
 library expression as a posed mesh and a face render (``expressions/NAME.obj``, ``NAME.png``,
 wire engine).
@@ -26,18 +28,21 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from mimetic.animate.expressions import expression_pose, load_library
 from mimetic.engines import ENGINES, Engine, make_engine
 from mimetic.head.model import DEFAULT_RESOLUTION, make_head
 from mimetic.head.params import HeadParams
 from mimetic.mesh.io import save_mesh
 from mimetic.render.renderer import Renderer
+from mimetic.rig.activations import pose
 from mimetic.rig.format import save_rig
 from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
 from mimetic.view.muscles import render_rig
 from mimetic.view.sheet import contact_sheet, save_png
-from mimetic.view.sheets import closeup_sheet, expression_sheet, muscle_sheet, render_pose
+from mimetic.view.sheets import closeup_sheet, expression_sheet, muscle_sheet, pose_tiles, render_pose
 
 Progress = Callable[[int, int], None]
 
@@ -69,7 +74,7 @@ def run_demo(
     files: list[Path] = []
     tiles = []
     jobs: list[int | None] = [None, *seeds]
-    sheets = 2 * len(ENGINES) + 1  # each engine's muscle and expression sheets, the close-ups
+    sheets = 2 * len(ENGINES) + 3  # each engine's muscle and expression sheets, side by side, close-ups, MP4
     total = len(jobs) + sheets + len(load_library().names) + len(ANIMATION_STEPS)
     steps = iter(range(1, total + 1))
 
@@ -162,10 +167,45 @@ def _action_sheets(
             save_png(sheet, out / ("expressions.png" if name == "wire" else f"expressions_{name}.png"))
         )
         tick()
+    poses = [("rest", pose(rig), None)]
+    poses += [(n, expression_pose(rig, library[n]), None) for n in library.names]
+    columns = [
+        pose_tiles(rig, engine, poses, views=("front",), size=tile, renderer=renderer)
+        for engine in engines.values()
+    ]
+    tiles = [
+        (f"{column[k][0]} ({name})", column[k][1])
+        for k in range(len(poses))
+        for name, column in zip(engines, columns, strict=True)
+    ]
+    files.append(save_png(contact_sheet(tiles, columns=len(engines)), out / "expressions_engines.png"))
+    tick()
     sheet = closeup_sheet(rig, engines["wire"], library, size=tile, renderer=renderer)
     files.append(save_png(sheet, out / "expressions_closeup.png"))
     tick()
+    if "tissue" in engines:
+        files.append(_jaw_drop(rig, engines["tissue"], out / "jaw_drop_tissue.mp4", renderer))
+        tick()
     return files
+
+
+JAW_DROP = ((0.0, 0.0), (0.3, 0.0), (0.45, 1.0), (1.2, 1.0), (1.35, 0.0), (2.0, 0.0))
+"""(time s, jaw_open as a fraction of its maximum) of the dynamic jaw drop: a fast drop, a hold, a
+snap shut."""
+
+
+def _jaw_drop(rig: Rig, engine: Engine, path: Path, renderer: Renderer) -> Path:
+    """A jaw drop simulated by the tissue engine (``simulate``: the lips and cheeks lag the jaw and
+    settle), three-quarter view, 30 fps."""
+    from mimetic.rig.activations import Clip
+    from mimetic.view.video import render_clip
+
+    times = np.arange(0.0, JAW_DROP[-1][0], 1.0 / ANIMATION_FPS)
+    opening = np.interp(times, *zip(*JAW_DROP, strict=True)) * rig.channel("jaw_open").maximum
+    values = np.zeros((len(times), len(rig.channels)))
+    values[:, rig.channel_index("jaw_open")] = opening
+    clip = Clip(rig.channel_names, values, ANIMATION_FPS)
+    return render_clip(rig, clip, path, engine=engine, size=384, yaw_deg=35.0, renderer=renderer)
 
 
 def _expressions(

@@ -73,6 +73,7 @@ from scipy.sparse.linalg import splu
 
 from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
+from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.engines.volume import TissueVolume, build_volume
 from mimetic.errors import ActivationError, MimeticWarning
 from mimetic.rig.activations import check_activations
@@ -833,6 +834,22 @@ class TissueEngine:
         """Time steps ``simulate`` takes per frame at ``fps``: each at most ``STEP_MAX_S`` long."""
         return max(1, int(np.ceil(1.0 / (fps * STEP_MAX_S) - 1e-9)))
 
+    def _inertia(self, values: np.ndarray, fps: float) -> np.ndarray:
+        """The inertial force (f, N, 3) newtons of each frame of a clip (f, c) at ``fps``: the tissue is
+        carried by the bones (the jaw, the head, the lids: the chain skins it after the physics), so
+        in the rest frame its nodes feel ``-m a`` for the acceleration ``a`` of the place the bones
+        carry them to (the skin vertex's, for every layer under it; second differences between
+        frames, the clip held still before its first and after its last). Rotation of that frame is
+        neglected: a frame turns the jaw by a few degrees at most."""
+        rest = self.rig.mesh.vertices[self.volume.surface]
+        weights = self.chain.weights[self.volume.surface]
+        places = np.stack(
+            [linear_blend_skinning(rest, weights, bone_transforms(self.rig, v)) for v in values]
+        )  # (f, k, 3) rig units
+        padded = np.concatenate([places[:1], places, places[-1:]])
+        accel = (padded[2:] - 2 * padded[1:-1] + padded[:-2]) * (fps**2 * self.model.metres_per_unit)
+        return -self.model.mass[None, :, None] * np.tile(accel, (1, 3, 1))
+
     def simulate(
         self, values: np.ndarray, fps: float, *, progress: Callable[[int, int], None] | None = None
     ) -> np.ndarray:
@@ -840,7 +857,8 @@ class TissueEngine:
 
         The tissue starts at rest; each frame's activations are reached at its end, ramping linearly
         from the previous frame's (from rest before the first), over ``steps_per_frame(fps)`` BDF2
-        steps (``step``); the chain runs on every frame.
+        steps (``step``), with the bones' inertial pull (``_inertia``: a jaw that drops fast leaves the
+        lower lip and cheeks behind for a moment); the chain runs on every frame.
         """
         values = check_activations(self.rig, values)
         if values.ndim != 2:
@@ -852,13 +870,15 @@ class TissueEngine:
         n_steps = self.steps_per_frame(fps)
         h = 1.0 / (fps * n_steps)
         a = self._muscle_values(values)  # (f, a)
+        carried = self._inertia(values, fps)  # (f, N, 3) newtons: the bones' pull on the tissue's mass
         state = TissueState.at_rest(self.model)
         previous = np.zeros(a.shape[1])
         out = np.empty((len(values), self.rig.n_vertices, 3))
         for frame in range(len(values)):
             for i in range(1, n_steps + 1):
                 now = previous + (a[frame] - previous) * (i / n_steps)
-                state = step(self.model, state, (self.forces @ now).reshape(-1, 3), h)
+                forces = (self.forces @ now).reshape(-1, 3) + carried[frame]
+                state = step(self.model, state, forces, h)
             previous = a[frame]
             out[frame] = self.chain.apply(self._skin(state.x), values[frame])
             if progress is not None:

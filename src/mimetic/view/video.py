@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from mimetic.atomic import atomic_path
-from mimetic.engines import make_engine
+from mimetic.engines import Engine, make_engine
 from mimetic.engines.basis import Basis, evaluate_basis
 from mimetic.errors import MimeticError, MimeticWarning, MissingExtraError
 from mimetic.render.renderer import Renderer, default_renderer
@@ -159,7 +159,7 @@ def render_clip(
     path: str | os.PathLike[str],
     *,
     basis: Basis | None = None,
-    engine: str = "wire",
+    engine: str | Engine = "wire",
     size: int = 512,
     yaw_deg: float = 0.0,
     audio: str | os.PathLike[str] | None = None,
@@ -169,7 +169,9 @@ def render_clip(
     """Render ``clip`` on ``rig`` to an MP4 of ``size``² pixels (64..2160) at the clip's fps.
 
     Each frame's pose comes from ``basis`` when given (``evaluate_basis`` in float32), else from the engine
-    ``engine``; the camera frames the rest face (``face_camera``), turned by ``yaw_deg``.
+    ``engine`` (a name or a prepared engine); an engine that simulates (``tissue``) plays the whole clip
+    through its dynamics, with inertia and follow-through. The camera frames the rest face
+    (``face_camera``), turned by ``yaw_deg``.
     """
     if not MIN_SIZE <= size <= MAX_SIZE:
         raise VideoError(f"video size {size} is outside {MIN_SIZE}..{MAX_SIZE} pixels")
@@ -178,14 +180,19 @@ def render_clip(
     renderer = renderer or default_renderer()
     camera = face_camera(rig, yaw_deg=yaw_deg)
     look = rig_look(rig)  # eyes, lashes and materials as the contact sheets draw them
-    deform = None if basis is not None else make_engine(rig, engine).deform
+    prepared = (
+        None if basis is not None else (make_engine(rig, engine) if isinstance(engine, str) else engine)
+    )
+    simulated = prepared.simulate(values, clip.fps) if hasattr(prepared, "simulate") else None
 
     def frames():
         for k, pose in enumerate(values):
             if basis is not None:  # float32: far below a pixel, and what the GL renderer draws in
                 vertices = evaluate_basis(basis, pose, dtype=np.float32)
+            elif simulated is not None:
+                vertices = simulated[k]
             else:
-                vertices = deform(pose)
+                vertices = prepared.deform(pose)
             yield renderer.render(rig.mesh.with_vertices(vertices), camera, size=(size, size), look=look)
             if progress is not None:
                 progress(k + 1, len(values))
