@@ -246,14 +246,6 @@ class TissueModel:
         return self._factors[key]
 
 
-def prism_topology(volume: TissueVolume) -> tuple[np.ndarray, np.ndarray]:
-    """The prisms (P, 6) of ``volume`` (a skin triangle's nodes in one layer, then the nodes under
-    them) and their layers (P,): 0 dermal-fatty (skin to fascia), 1 muscle layer (fascia to skull)."""
-    k, tri = volume.n_skin, np.asarray(volume.triangles, dtype=np.int64)
-    prisms = [np.concatenate([tri + layer * k, tri + (layer + 1) * k], axis=1) for layer in (0, 1)]
-    return np.concatenate(prisms), np.repeat([0, 1], len(tri))
-
-
 def prism_volumes(nodes: np.ndarray, prisms: np.ndarray) -> np.ndarray:
     """Volumes (P,) of prisms (P, 6) over ``nodes`` (N, 3), top 0-2 over bottom 3-5: the divergence
     theorem over its two triangles and three quads, each quad taken as the mean of its two
@@ -302,7 +294,8 @@ def prepare_tissue(
     n, k = volume.n_nodes, volume.n_skin
     pinned = np.array(volume.pinned, dtype=bool)
     free = np.flatnonzero(~pinned)
-    prisms, prism_layer = prism_topology(volume)
+    prisms = volume.prisms  # (P, 6): the dermal-fatty layer's, then the muscle layer's
+    prism_layer = np.repeat([0, 1], len(volume.triangles))
     size = np.abs(prism_volumes(rest, prisms))  # (P,) m³
 
     # 1. springs: the unique edges of the prisms, each with its share of their volume
