@@ -169,12 +169,6 @@ class TissueVolume:
         )
         return np.bincount(prisms.ravel(), np.repeat(volumes / 6.0, 6), self.n_nodes)
 
-    def layer(self, name: str) -> np.ndarray:
-        """Node indices (k,) of the ``"skin"``, ``"fascia"`` or ``"skull"`` layer."""
-        k = self.n_skin
-        start = {"skin": 0, "fascia": k, "skull": 2 * k}[name]
-        return np.arange(start, start + k)
-
     def to_vertices(self, node_values: np.ndarray) -> np.ndarray:
         """Per-vertex values (n, ...) from skin-node values (k, ...): the mouth's lining follows the
         skin (``cavity``), other vertices off the tissue (eyes, teeth, ears) get 0."""
@@ -328,8 +322,8 @@ def build_volume(rig: Rig) -> TissueVolume:
     index = node_of[weld.index]
     cavity = np.intersect1d(np.flatnonzero(index < 0), skin_vertices(rig.mesh))  # the mouth's lining
     mesh_parts = [rig.mesh.parts[p] for p in SKIN_PARTS if p in rig.mesh.parts]
-    deformable = rig.mesh.faces[np.concatenate(mesh_parts)] if mesh_parts else rig.mesh.faces
-    follow, source, fall = cavity_links(rig.mesh.vertices, deformable, cavity, LINING_REACH_REL * rig.scale)
+    unwelded = rig.mesh.faces[np.concatenate(mesh_parts)] if mesh_parts else rig.mesh.faces  # the rig's own
+    follow, source, fall = cavity_links(rig.mesh.vertices, unwelded, cavity, LINING_REACH_REL * rig.scale)
     return TissueVolume(
         nodes, weld.first[used], index, tri, tets, layer, pinned, normals, depth, follow, index[source], fall
     )
