@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
+from mimetic.engines.cholesky import Cholesky, cholesky
 from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
 from mimetic.engines.volume import SPLIT_COUNTS, SPLITS, TissueVolume, build_volume, tet_volumes
@@ -63,32 +63,43 @@ def tet_gradients(nodes: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.n
     return gradients, np.abs(tet_volumes(nodes, tets))
 
 
-def tet_blocks(nodes: np.ndarray, tets: np.ndarray, young: np.ndarray, poisson: float) -> np.ndarray:
-    """Linear-elastic stiffness blocks (t, 4, 4, 3, 3) of tetrahedra ``tets`` (t, 4) with Young's
-    moduli ``young`` (t,): ``[a, b]`` is the 3×3 block coupling node ``a``'s force to node ``b``'s
-    displacement, ``V (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a · g_b) I)``."""
-    g, volume = tet_gradients(nodes, tets)
-    lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson)) * volume  # (t,) λ V
-    mu = young / (2 * (1 + poisson)) * volume  # (t,) μ V
-    outer = np.einsum("tai,tbj->tabij", g, g)  # [a, b, i, j] = g_a,i g_b,j
-    blocks = lam[:, None, None, None, None] * outer + mu[:, None, None, None, None] * np.swapaxes(outer, 3, 4)
-    blocks += (mu[:, None, None] * np.einsum("tai,tbi->tab", g, g))[..., None, None] * np.eye(3)
+def isotropic_blocks(moments: np.ndarray, young: np.ndarray, poisson: float) -> np.ndarray:
+    """Linear-elastic stiffness blocks (e, k, k, 3, 3) from the gradient moments ``moments``
+    (e, k, k, 3, 3), ``[a, b, i, j] = Σ V g_a,i g_b,j`` over an element's tetrahedra, and Young's moduli
+    ``young`` (e,): ``[a, b]`` is the 3×3 block coupling node ``a``'s force to node ``b``'s
+    displacement, ``λ Σ V g_a g_bᵀ + μ Σ V g_b g_aᵀ + μ Σ V (g_a · g_b) I``."""
+    lam = (young * poisson / ((1 + poisson) * (1 - 2 * poisson)))[:, None, None, None, None]
+    mu = (young / (2 * (1 + poisson)))[:, None, None, None, None]
+    blocks = lam * moments + mu * np.swapaxes(moments, 3, 4)
+    blocks += mu * np.trace(moments, axis1=3, axis2=4)[..., None, None] * np.eye(3)
     return blocks
+
+
+def tet_blocks(nodes: np.ndarray, tets: np.ndarray, young: np.ndarray, poisson: float) -> np.ndarray:
+    """Stiffness blocks (t, 4, 4, 3, 3) of tetrahedra ``tets`` (t, 4) with Young's moduli ``young`` (t,)
+    (``isotropic_blocks``)."""
+    g, volume = tet_gradients(nodes, tets)
+    moments = volume[:, None, None, None, None] * np.einsum("tai,tbj->tabij", g, g)
+    return isotropic_blocks(moments, young, poisson)
 
 
 def prism_blocks(nodes: np.ndarray, prisms: np.ndarray, young: np.ndarray, poisson: float) -> np.ndarray:
     """Stiffness blocks (p, 6, 6, 3, 3) of prisms ``prisms`` (p, 6: top triangle, then the nodes under
     it) with moduli ``young`` (p,): the mean over the prism's six splits into tetrahedra, so it does not
-    depend on the order of its nodes."""
-    out = np.zeros((len(prisms), 6, 6, 3, 3))
+    depend on the order of its nodes. The twelve distinct tetrahedra's gradients are spread over the
+    prism's six nodes, so the moments are one batched product per chunk."""
+    out = np.empty((len(prisms), 6, 6, 3, 3))
     for start in range(0, len(prisms), CHUNK):
-        part, e = prisms[start : start + CHUNK], young[start : start + CHUNK]
-        into = out[start : start + CHUNK]
-        for tet, count in zip(SPLITS, SPLIT_COUNTS, strict=True):
-            blocks = tet_blocks(nodes, part[:, tet], e * (count / 6.0), poisson)
-            for a in range(4):
-                for b in range(4):
-                    into[:, tet[a], tet[b]] += blocks[:, a, b]
+        part = prisms[start : start + CHUNK]
+        spread = np.zeros((len(part), len(SPLITS), 6, 3))  # [p, tet, prism node, axis]
+        weights = np.empty((len(part), len(SPLITS)))
+        for k, (tet, count) in enumerate(zip(SPLITS, SPLIT_COUNTS, strict=True)):
+            spread[:, k, tet], volume = tet_gradients(nodes, part[:, tet])
+            weights[:, k] = volume * (count / 6.0)
+        flat = spread.reshape(len(part), len(SPLITS), 18)
+        moments = np.matmul(np.swapaxes(flat * weights[..., None], 1, 2), flat)  # (p, 18, 18)
+        moments = moments.reshape(-1, 6, 3, 6, 3).transpose(0, 1, 3, 2, 4)
+        out[start : start + CHUNK] = isotropic_blocks(moments, young[start : start + CHUNK], poisson)
     return out
 
 
@@ -129,13 +140,13 @@ class FemSolver:
 
     K: sp.csr_matrix
     free: np.ndarray
-    _factor: object
+    _factor: Cholesky
 
     def solve(self, forces: np.ndarray) -> np.ndarray:
         """Displacements (3N,) or (3N, c) for nodal forces ``forces`` (3N,) or (3N, c); pinned: 0."""
         forces = np.asarray(forces, dtype=np.float64)
         u = np.zeros_like(forces)
-        u[self.free] = self._factor.solve(np.ascontiguousarray(forces[self.free]))
+        u[self.free] = self._factor.solve(forces[self.free])
         return u
 
 
@@ -152,9 +163,7 @@ def prepare_fem(
     spring[2 * k + hanging] += LIP_ANCHOR * nodal[2 * k + hanging] / volume.depth[hanging] ** 2
     K = (K + sp.diags(np.repeat(spring, 3))).tocsr()
     free = np.flatnonzero(np.repeat(~volume.pinned, 3))
-    system = K[free][:, free].tocsc()
-    factor = splu(system, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-    return FemSolver(K, free, factor)
+    return FemSolver(K, free, cholesky(K[free][:, free]))
 
 
 def fem_deltas(rig: Rig, volume: TissueVolume, solver: FemSolver) -> np.ndarray:

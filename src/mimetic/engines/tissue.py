@@ -47,11 +47,12 @@ Model (Lee et al. §3; values are module constants):
 
 Solver: projective dynamics (Liu et al. 2013, Bouaziz et al. 2014). Every term above is a
 constraint ``w/2 |A x - p|²`` with a linear ``A`` shared by x, y and z, and ``p`` the projection of
-``A x`` onto the constraint. Alternating the local step (all projections, vectorised) with the
-global step (one solve of the constant ``Aᵀ W A + diag(h) [+ c M]``, prefactored once with
-``splu``, 3 right-hand sides) lowers the energy at every iteration; Anderson acceleration (Peng et
-al. 2018) mixes the last ``ANDERSON_DEPTH`` iterates, kept only when it lowers the energy too. The
-kernel works in SI units: positions in metres, forces in newtons, energy in joules.
+``A x`` onto the constraint. Alternating the local step (all projections, compiled in
+``engines.projections``) with the global step (one solve of the constant ``Aᵀ W A + diag(h) [+ c M]``,
+prefactored once by ``engines.cholesky``, 3 right-hand sides) lowers the energy at every iteration;
+Anderson acceleration (Peng et al. 2018) mixes the last ``ANDERSON_DEPTH`` iterates, kept only when
+it lowers the energy too. The kernel works in SI units: positions in metres, forces in newtons,
+energy in joules.
 
 * ``equilibrium``: the static equilibrium (no inertia), to ``TOLERANCE_M`` (at most
   ``STATIC_ITERATIONS``), from the linearised solution: ``TissueEngine.deform``.
@@ -69,10 +70,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
+from threadpoolctl import ThreadpoolController
 
+from mimetic.engines.cholesky import Cholesky, cholesky
 from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
+from mimetic.engines.projections import csr_times, prism_targets, spring_targets
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.engines.volume import TissueVolume, build_volume
 from mimetic.errors import ActivationError, MimeticWarning
@@ -126,13 +129,9 @@ DYNAMIC_ITERATIONS = 4
 """Local/global iterations of a time step, at most (from the inertial prediction). Fewer than
 converge: the skin then lags a little more than the physics says (at 30 fps it reaches 31 % of a
 step in activation after one frame instead of 80 %) but still overshoots and settles."""
-UNIT_STEPS = 3
-"""Newton steps of the projection onto determinant 1 (``_unit_determinant``)."""
-POLAR_STEPS = 3
-"""Newton steps of the polar decomposition (``_rotations``); the SVD takes the prisms that have not
-converged to ``POLAR_TOLERANCE`` by then."""
-POLAR_TOLERANCE = 1e-4
-"""Largest change of the last polar Newton step (which leaves an error of about its square)."""
+BLAS = ThreadpoolController()
+"""The BLAS libraries loaded with numpy and scipy, whose threads ``_iterate`` and ``simulate`` hold
+to one."""
 ANDERSON_DEPTH = 5
 """Previous iterates that Anderson acceleration mixes."""
 SPRING_PAIRS = np.array(
@@ -219,8 +218,9 @@ class TissueModel:
     _free_rows: sp.csr_matrix = field(repr=False)  # A[:, free]
     _gather: sp.csr_matrix = field(repr=False)  # A[:, free]ᵀ W: projections to the right-hand side
     _offset: np.ndarray = field(repr=False)  # (R, 3) A[:, pinned] @ rest[pinned]
+    _pinned_pull: np.ndarray = field(repr=False)  # (f, 3) _gather @ _offset
     _matrix: sp.csc_matrix = field(repr=False)  # (f, f) A[:, free]ᵀ W A[:, free] + diag(h)
-    _factors: dict = field(repr=False)  # inertia coefficient -> splu factor
+    _factors: dict = field(repr=False)  # inertia coefficient -> Cholesky factor
 
     @property
     def n_nodes(self) -> int:
@@ -232,17 +232,18 @@ class TissueModel:
         e, p = len(self.edges), 3 * len(self.prisms)
         return slice(0, e), slice(e, e + p), slice(e + p, len(self.weights))
 
-    def factor(self, inertia: float = 0.0):
-        """The ``splu`` factor of the global matrix ``A_fᵀ W A_f + diag(h) + inertia M`` over the free
-        nodes (computed once per ``inertia``, 1/s²)."""
+    def global_matrix(self, inertia: float = 0.0) -> sp.csc_matrix:
+        """The global step's matrix (f, f) ``A_fᵀ W A_f + diag(h) + inertia M`` over the free nodes,
+        ``inertia`` in 1/s²."""
+        if not inertia:
+            return self._matrix
+        return (self._matrix + sp.diags(inertia * self.mass[self.free])).tocsc()
+
+    def factor(self, inertia: float = 0.0) -> Cholesky:
+        """The Cholesky factor of ``global_matrix(inertia)`` (computed once per ``inertia``)."""
         key = float(inertia)
         if key not in self._factors:
-            matrix = self._matrix
-            if key:
-                matrix = (matrix + sp.diags(key * self.mass[self.free])).tocsc()
-            self._factors[key] = splu(
-                matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
-            )
+            self._factors[key] = cholesky(self.global_matrix(key))
         return self._factors[key]
 
 
@@ -387,6 +388,7 @@ def prepare_tissue(
         p,
         len(contact),
     )
+    offset = A[:, np.flatnonzero(pinned)] @ rest[pinned]
     return TissueModel(
         **arrays,
         strain_limit=BIPHASIC_STRAIN,
@@ -396,73 +398,14 @@ def prepare_tissue(
         weights=weights,
         _free_rows=free_rows,
         _gather=gather,
-        _offset=A[:, np.flatnonzero(pinned)] @ rest[pinned],
+        _offset=offset,
+        _pinned_pull=gather @ offset,
         _matrix=(gather @ free_rows + sp.diags(restoration[free])).tocsc(),
         _factors={},
     )
 
 
 # --------------------------------------------------------------------------- the local step
-
-
-def _cofactor(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Cofactors (9, P) and determinants (P,) of matrices given column-major as (9, P): row
-    ``3 j + i`` is ``F[i, j]``. The cofactor's columns are cross products of F's columns."""
-    c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z = c
-    cof = np.empty_like(c)
-    cof[0], cof[1], cof[2] = c1y * c2z - c1z * c2y, c1z * c2x - c1x * c2z, c1x * c2y - c1y * c2x
-    cof[3], cof[4], cof[5] = c2y * c0z - c2z * c0y, c2z * c0x - c2x * c0z, c2x * c0y - c2y * c0x
-    cof[6], cof[7], cof[8] = c0y * c1z - c0z * c1y, c0z * c1x - c0x * c1z, c0x * c1y - c0y * c1x
-    return cof, c0x * cof[0] + c0y * cof[1] + c0z * cof[2]
-
-
-def _rotations(c: np.ndarray, upright: np.ndarray) -> np.ndarray:
-    """The proper rotations (9, P) nearest to matrices (9, P) (column-major, ``_cofactor``).
-
-    ``POLAR_STEPS`` scaled Newton steps of the polar decomposition, ``R ← (ζ R + R⁻ᵀ/ζ)/2`` with ``ζ = |det
-    R|^(-1/3)`` (Higham 1986); where that has not converged (a matrix far from a rotation) or the
-    matrix is inverted (``upright`` False): ``U diag(1, 1, det UVᵀ) Vᵀ`` from its SVD.
-    """
-    r = np.where(upright, c, np.eye(3).reshape(9, 1))
-    for _ in range(POLAR_STEPS):
-        cof, det = _cofactor(r)  # R⁻ᵀ = cof R / det R
-        z = np.cbrt(det)
-        previous, r = r, (0.5 / z) * r + (0.5 * z / det) * cof
-    # Newton converges quadratically: a last step of δ leaves about δ²
-    bad = np.flatnonzero(~upright | ~(np.abs(r - previous).max(axis=0) <= POLAR_TOLERANCE))  # NaN too
-    if len(bad):
-        f = c[:, bad].reshape(3, 3, -1).transpose(2, 1, 0)  # (b, 3, 3): F[i, j]
-        u, _, vt = np.linalg.svd(f)
-        u[:, :, 2] *= np.sign(np.linalg.det(u @ vt))[:, None]
-        r[:, bad] = (u @ vt).transpose(2, 1, 0).reshape(9, -1)
-    return r
-
-
-def _unit_determinant(c: np.ndarray, upright: np.ndarray) -> np.ndarray:
-    """The nearest matrices (9, P) of determinant 1 to matrices (9, P) (``_cofactor``): three Newton
-    steps along the determinant's gradient (the cofactor), ``F - λ cof F`` with ``λ = (det F - 1) /
-    |cof F|²``. For an inverted matrix (``upright`` False) the same steps on its signed singular
-    values (``F = U diag(σ₁, σ₂, ±σ₃) Vᵀ``, U and V rotations), which lead to the branch of positive
-    determinant: the result is continuous as a prism passes through flat."""
-    v = c
-    for _ in range(UNIT_STEPS):
-        cof, det = _cofactor(v)
-        v = v - ((det - 1.0) / np.maximum(np.einsum("ap,ap->p", cof, cof), 1e-300)) * cof
-    bad = np.flatnonzero(~upright)
-    if len(bad):
-        f = c[:, bad].reshape(3, 3, -1).transpose(2, 1, 0)  # (b, 3, 3): F[i, j]
-        u, sigma, vt = np.linalg.svd(f)
-        sign = np.sign(np.linalg.det(u @ vt))
-        u[:, :, 2] *= sign[:, None]
-        sigma[:, 2] *= sign
-        for _ in range(UNIT_STEPS):
-            grad = np.stack(
-                [sigma[:, 1] * sigma[:, 2], sigma[:, 0] * sigma[:, 2], sigma[:, 0] * sigma[:, 1]], 1
-            )
-            lam = (sigma.prod(axis=1) - 1.0) / np.maximum(np.einsum("bi,bi->b", grad, grad), 1e-300)
-            sigma = sigma - lam[:, None] * grad
-        v[:, bad] = ((u * sigma[:, None, :]) @ vt).transpose(2, 1, 0).reshape(9, -1)
-    return v
 
 
 def _local(model: TissueModel, ax: np.ndarray) -> tuple[np.ndarray, float]:
@@ -478,27 +421,11 @@ def _local(model: TissueModel, ax: np.ndarray) -> tuple[np.ndarray, float]:
     """
     springs, prisms, contact = model.blocks
     p = np.empty_like(ax)
-    d = ax[springs]
-    length = np.maximum(np.sqrt(np.einsum("ei,ei->e", d, d)), 1e-300)
-    rest, soft, stiff = model.rest_lengths, model.stiffness, model.stiff_phase
-    limited = np.clip(length, rest * (1.0 - model.strain_limit), rest * (1.0 + model.strain_limit))
-    target = (soft * rest + stiff * limited) / (soft + stiff)
-    p[springs] = d * (target / length)[:, None]
-    energy = 0.5 * (soft @ (length - rest) ** 2 + stiff @ (length - limited) ** 2)
-
-    c = np.ascontiguousarray(ax[prisms].reshape(-1, 9).T)  # (9, P): row 3 j + i is F[i, j]
-    upright = _cofactor(c)[1] > 0
-    rotation = _rotations(c, upright)
-    ws, wv = model.shape_stiffness, model.volume_stiffness
-    if wv.any():
-        unit = _unit_determinant(c, upright)
-        energy += 0.5 * (ws @ np.einsum("ap,ap->p", c - rotation, c - rotation))
-        energy += 0.5 * (wv @ np.einsum("ap,ap->p", c - unit, c - unit))
-        target = rotation + (wv / (ws + wv)) * (unit - rotation)
-    else:
-        energy += 0.5 * (ws @ np.einsum("ap,ap->p", c - rotation, c - rotation))
-        target = rotation
-    p[prisms] = target.T.reshape(-1, 3)
+    energy = spring_targets(
+        ax[springs], model.rest_lengths, model.stiffness, model.stiff_phase, model.strain_limit, p[springs]
+    )
+    f = np.ascontiguousarray(ax[prisms]).reshape(-1, 9)  # (P, 9): entry 3 j + i is F[i, j]
+    energy += prism_targets(f, model.shape_stiffness, model.volume_stiffness, p[prisms].reshape(-1, 9))
 
     y = ax[contact]
     height = np.minimum(
@@ -568,7 +495,7 @@ class TissueResult:
     residuals: np.ndarray  # (iterations,) the largest node step of each global solve, metres
 
 
-def _iterate(
+def _iterations(
     model: TissueModel, x: np.ndarray, constant: np.ndarray, inertia: float, limit: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """Local/global iterations from ``x`` (N, 3) until no free node moves ``TOLERANCE_M``, at most
@@ -584,12 +511,12 @@ def _iterate(
     free = model.free
     diagonal = (model.restoration + inertia * model.mass)[free, None]
 
-    known = constant - model._gather @ model._offset  # the right-hand side's constant part
+    known = constant - model._pinned_pull  # the right-hand side's constant part
 
     def local(xf: np.ndarray) -> tuple[np.ndarray, float]:
-        p, constraints = _local(model, model._free_rows @ xf + model._offset)
+        p, constraints = _local(model, csr_times(model._free_rows, xf, model._offset))
         phi = constraints + np.einsum("fi,fi->", 0.5 * diagonal * xf - constant, xf)
-        return model._gather @ p + known, phi
+        return csr_times(model._gather, p, known), phi
 
     xf = x[free]
     rhs, phi = local(xf)
@@ -620,6 +547,15 @@ def _iterate(
     out = x.copy()
     out[free] = xf
     return out, np.array(steps)
+
+
+def _iterate(
+    model: TissueModel, x: np.ndarray, constant: np.ndarray, inertia: float, limit: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``_iterations`` with BLAS on one thread: the compiled local step runs on every core, and idle
+    OpenBLAS threads spinning beside it starved it (a 10k-node frame took 53 ms instead of 24)."""
+    with BLAS.limit(limits=1, user_api="blas"):
+        return _iterations(model, x, constant, inertia, limit)
 
 
 def equilibrium(model: TissueModel, forces: np.ndarray, *, x0: np.ndarray | None = None) -> TissueResult:
@@ -730,15 +666,8 @@ def muscle_responses(model: TissueModel, forces: sp.spmatrix) -> np.ndarray:
     """Displacements (3N, a) metres of the linearised tissue (``rest_stiffness``) under each column of
     ``forces`` (3N, a) newtons; the pinned nodes stay."""
     dof = (3 * model.free[:, None] + np.arange(3)).ravel()
-    factor = splu(
-        rest_stiffness(model)[dof][:, dof].tocsc(),
-        permc_spec="MMD_AT_PLUS_A",
-        diag_pivot_thresh=0.0,
-        options={"SymmetricMode": True},
-    )
     out = np.zeros(forces.shape)
-    for j in range(forces.shape[1]):  # column by column: SuperLU's many-column solve is slower
-        out[dof, j] = factor.solve(forces[:, j].toarray().ravel()[dof])
+    out[dof] = cholesky(rest_stiffness(model)[dof][:, dof]).solve(forces.tocsr()[dof].toarray())
     return out
 
 
@@ -867,13 +796,14 @@ class TissueEngine:
         state = TissueState.at_rest(self.model)
         previous = np.zeros(a.shape[1])
         out = np.empty((len(values), self.rig.n_vertices, 3))
-        for frame in range(len(values)):
-            for i in range(1, n_steps + 1):
-                now = previous + (a[frame] - previous) * (i / n_steps)
-                forces = (self.forces @ now).reshape(-1, 3) + carried[frame]
-                state = step(self.model, state, forces, h)
-            previous = a[frame]
-            out[frame] = self.chain.apply(self._skin(state.x), values[frame])
-            if progress is not None:
-                progress(frame + 1, len(values))
+        with BLAS.limit(limits=1, user_api="blas"):  # the chain's BLAS idles between steps too
+            for frame in range(len(values)):
+                for i in range(1, n_steps + 1):
+                    now = previous + (a[frame] - previous) * (i / n_steps)
+                    forces = (self.forces @ now).reshape(-1, 3) + carried[frame]
+                    state = step(self.model, state, forces, h)
+                previous = a[frame]
+                out[frame] = self.chain.apply(self._skin(state.x), values[frame])
+                if progress is not None:
+                    progress(frame + 1, len(values))
         return out
