@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 import json
 import sys
+import tempfile
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -754,6 +755,120 @@ def animate(
             targets = _muscle_targets(loaded, engine.value, progress)
         _write_scene(loaded, out, targets, sampled)
     stdout.print(f"wrote {out} ({sampled.n_frames} frames at {fps:g} fps)")
+
+
+SPEAK_OUTPUTS = (*ANIMATE_OUTPUTS, ".json", ".csv")
+Language = Enum("Language", {"en": "en", "nso": "nso"}, type=str)
+
+
+@command()
+def speak(
+    rig: Path = typer.Argument(..., metavar="RIG", help="The .mrig rig that speaks."),
+    out: Path = typer.Option(
+        ...,
+        "-o",
+        "--out",
+        help="talk.mp4 (video with the sound), talk.glb / .usda / .usdc, or the clip as .json / .csv.",
+    ),
+    text: str | None = typer.Option(None, "--text", help="What is said (the transcript, with --audio)."),
+    text_file: Path | None = typer.Option(None, "--text-file", help="Read the text from a file."),
+    timings: Path | None = typer.Option(
+        None, "--timings", help="Phone timings: Praat/MFA TextGrid, CSV or JSON (phoneme, start, end)."
+    ),
+    audio: Path | None = typer.Option(
+        None, "--audio", help="A recording (WAV): aligned to the text offline, and muxed into an MP4."
+    ),
+    synthesize: bool = typer.Option(
+        False, "--synthesize", help="Speak the text with the espeak-ng program and sync to its sound."
+    ),
+    language: Language = typer.Option(
+        Language.en, "--language", help="en (English) or nso (Northern Sotho, Sesotho sa Leboa)."
+    ),
+    visemes: str | None = typer.Option(
+        None, "--visemes", help="Viseme map: en, nso, mpeg4 or a map .json (default: the language's)."
+    ),
+    fps: float = typer.Option(30.0, "--fps", min=1.0, max=240.0, help="Frames per second."),
+    rate: float = typer.Option(1.0, "--rate", min=0.2, max=5.0, help="Speaking rate for text alone."),
+    jaw: float = typer.Option(1.0, "--jaw", min=0.0, max=2.0, help="Jaw intensity (JALI dial)."),
+    lips: float = typer.Option(1.0, "--lips", min=0.0, max=2.0, help="Lip intensity (JALI dial)."),
+    eyes: bool = typer.Option(True, "--eyes/--no-eyes", help="Add blinks and small gaze saccades."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the blinks and saccades."),
+    baseline: bool = typer.Option(
+        False, "--baseline", help="Linear interpolation between visemes instead of coarticulation."
+    ),
+    timings_out: Path | None = typer.Option(
+        None, "--timings-out", help="Also write the phone timings (.TextGrid, .csv or .json)."
+    ),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Deformation engine."),
+) -> None:
+    """Lip sync: text, phone timings or audio + transcript to a talking head (visemes, coarticulation).
+
+    Examples:
+
+    \b
+      mimetic speak head.mrig --text "Hello there" -o hello.mp4
+      mimetic speak head.mrig --audio take1.wav --text-file take1.txt -o take1.mp4
+      mimetic speak head.mrig --timings take1.TextGrid --audio take1.wav -o take1.glb
+      mimetic speak head.mrig --text "Dumela, o kae?" --language nso -o dumela.mp4
+      mimetic speak head.mrig --text "Hello there" --synthesize -o hello.mp4
+    """
+    from mimetic.animate.clip import from_clip, save_clip, save_csv
+    from mimetic.rig.format import load_rig
+    from mimetic.speech.lipsync import lip_sync
+    from mimetic.speech.timings import save_timings
+    from mimetic.speech.visemes import BUILT_IN, load_viseme_map
+
+    _output(out, SPEAK_OUTPUTS)
+    if timings_out is not None:
+        _output(timings_out, (".textgrid", ".csv", ".json"), "--timings-out")
+    if text_file is not None:
+        if text is not None:
+            raise typer.BadParameter("give --text or --text-file, not both")
+        text = text_file.read_text(encoding="utf-8")
+    loaded = load_rig(rig)
+    vmap = None if visemes is None or visemes in BUILT_IN else load_viseme_map(visemes, channels=loaded)
+    with tempfile.TemporaryDirectory() as scratch:
+        spoken = Path(scratch) / "synthesized.wav" if synthesize else None
+        speech = lip_sync(
+            loaded,
+            text=text,
+            timings=timings,
+            audio=audio,
+            synthesize_to=spoken,
+            language=language.value,
+            fps=fps,
+            visemes=vmap or visemes,
+            jaw=jaw,
+            lips=lips,
+            rate=rate,
+            eyes=eyes,
+            seed=seed,
+            baseline=baseline,
+        )
+        clip = speech.clip
+        suffix = out.suffix.lower()
+        if suffix == ".mp4":
+            from mimetic.view.video import render_clip
+
+            with _progress("video") as progress:
+                render_clip(
+                    loaded, clip, out, engine=engine.value, size=size, audio=speech.audio, progress=progress
+                )
+        elif suffix == ".json":
+            save_clip(from_clip(clip), out)
+        elif suffix == ".csv":
+            save_csv(clip, out)
+        else:
+            with _progress("bake") as progress:
+                targets = _muscle_targets(loaded, engine.value, progress)
+            _write_scene(loaded, out, targets, clip)
+    if timings_out is not None:
+        save_timings(speech.timings, timings_out)
+    spoken_phones = len(speech.timings.spoken())
+    stdout.print(
+        f"wrote {out} ({clip.n_frames} frames at {fps:g} fps, {spoken_phones} phones, {speech.source})"
+    )
 
 
 def _muscle_targets(rig, engine: str, progress) -> dict:

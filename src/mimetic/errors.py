@@ -41,6 +41,11 @@ class RenderError(MimeticError, RuntimeError):
     """Offscreen rendering is unavailable (e.g. a missing system library)."""
 
 
+class SpeechError(MimeticError, ValueError):
+    """Unknown phonemes or words, a malformed timing file, audio that cannot be aligned, an unknown
+    language or viseme map."""
+
+
 class MissingExtraError(MimeticError, ImportError):
     """An optional dependency is not installed; the message names the extra to install."""
 

@@ -1,0 +1,258 @@
+"""Audio + transcript → phone timings, offline, by pocketsphinx forced alignment; and speech audio for
+text from the ``espeak-ng`` program.
+
+``align_audio`` reads a PCM WAV (any rate, any channels), converts it to what pocketsphinx's
+bundled English model needs (16 kHz mono 16-bit), and runs pocketsphinx's two-pass alignment: a
+word alignment of the transcript (optional pauses between words), then a phone alignment inside
+it, on a 10 ms frame grid (at least 30 ms a phone). The settings are those of pocketsphinx's own
+``align`` command (no language model, no best-path rescoring), which made the shared data's
+LibriVox reference alignments. Words missing from pocketsphinx's dictionary are added with the
+phones of ``mimetic.speech.phonemes``; stress digits are taken from the CMU dictionary
+pronunciation that matches the aligned phones.
+
+Northern Sotho: no acoustic model exists, so each phone is aligned as its nearest English phones
+(``nso.TO_ARPABET``: KG as K HH, TLH as T L, …) by the English model, and the English segments are
+joined back into the Sepedi phone. This is an approximation: expect boundaries to be rougher than
+in English, especially for phones English lacks (HL, KG, G, BJ).
+
+pocketsphinx is in the extra ``[speech]``; espeak-ng (GPL) is only ever run as a separate program.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import subprocess
+import wave
+from math import gcd
+from pathlib import Path
+
+import numpy as np
+
+from mimetic.atomic import atomic_path
+from mimetic.errors import MissingExtraError, SpeechError, install_hint
+from mimetic.speech import nso
+from mimetic.speech.phonemes import cmu_pronunciations, text_to_phonemes
+from mimetic.speech.phones import LANGUAGES, PhoneTimings, WordPhones
+from mimetic.speech.timings import timings_from_words
+
+log = logging.getLogger(__name__)
+
+SAMPLE_RATE = 16000
+"""Hz: the rate of pocketsphinx's English acoustic model."""
+FRAME_S = 0.01
+"""pocketsphinx's frame: alignment times are multiples of it."""
+ESPEAK_TIMEOUT_S = 60.0
+
+
+def read_wav(path: str | Path) -> tuple[np.ndarray, int]:
+    """The samples of a PCM WAV file, channels averaged.
+
+    Returns
+    -------
+    samples : (n,) float64 in [-1, 1]
+    rate : int, Hz
+
+    Raises
+    ------
+    SpeechError
+        The file is missing, not a WAV file, not PCM (e.g. float or compressed WAV), or holds no
+        samples.
+    """
+    path = Path(path)
+    convert = f"convert it, e.g. ffmpeg -i {path.name} -ac 1 -ar {SAMPLE_RATE} -sample_fmt s16 out.wav"
+    try:
+        with wave.open(str(path), "rb") as wav:
+            channels, width, rate = wav.getnchannels(), wav.getsampwidth(), wav.getframerate()
+            data = wav.readframes(wav.getnframes())
+    except FileNotFoundError:
+        raise SpeechError(f"{path}: no such audio file") from None
+    except (wave.Error, EOFError) as error:
+        raise SpeechError(f"{path}: not a PCM WAV file ({error}); {convert}") from None
+    n = len(data) // (width * channels)
+    if n == 0:
+        raise SpeechError(f"{path}: the WAV file holds no samples")
+    if width == 3:  # 24-bit little-endian: assemble, then sign-extend
+        raw = np.frombuffer(data[: n * channels * 3], np.uint8).reshape(-1, 3).astype(np.int64)
+        ints = raw[:, 0] | (raw[:, 1] << 8) | (raw[:, 2] << 16)
+        ints, scale = np.where(ints >= 1 << 23, ints - (1 << 24), ints), 2.0**23
+    else:
+        dtype = {1: np.uint8, 2: np.dtype("<i2"), 4: np.dtype("<i4")}[width]
+        ints = np.frombuffer(data[: n * channels * width], dtype).astype(np.int64)
+        ints, scale = (ints - 128, 128.0) if width == 1 else (ints, 2.0 ** (8 * width - 1))
+    samples = ints.reshape(n, channels).mean(axis=1) / scale
+    return samples, rate
+
+
+def pcm16(samples: np.ndarray, rate: int) -> bytes:
+    """Mono samples (n,) float64 in [-1, 1] at ``rate`` Hz → 16 kHz 16-bit little-endian PCM bytes
+    (polyphase resampling, ``scipy.signal.resample_poly``)."""
+    if rate != SAMPLE_RATE:
+        from scipy.signal import resample_poly  # a slow import (seconds): only when needed
+
+        g = gcd(SAMPLE_RATE, rate)
+        samples = resample_poly(samples, SAMPLE_RATE // g, rate // g)
+    return np.clip(np.round(samples * 32768.0), -32768, 32767).astype("<i2").tobytes()
+
+
+def _decoder():
+    try:
+        from pocketsphinx import Decoder
+    except ImportError as error:
+        raise MissingExtraError(
+            f"aligning audio needs pocketsphinx, in the optional extra [speech]: {install_hint('speech')}; "
+            f"importing it failed: {error}"
+        ) from error
+    # As pocketsphinx's `align` command: no language model, no best-path pass. Dither (seeded, so
+    # results repeat) because digital silence, as in synthesized speech, makes the search fail.
+    return Decoder(samprate=SAMPLE_RATE, lm=None, bestpath=False, loglevel="FATAL", dither=True, seed=1)
+
+
+def _align(decoder, audio: bytes, words: list[str]) -> list[tuple[str, list[tuple[str, float, float]]]]:
+    """Two-pass alignment of ``words`` (all in the decoder's dictionary) to 16 kHz PCM ``audio``:
+    [(word, [(phone, start_s, end_s), …]), …] with pocketsphinx's pauses as words "<sil>"."""
+    failed = (
+        "pocketsphinx could not align the transcript to the audio ({}): check that the audio says "
+        "exactly the transcript and is not silent or too short"
+    )
+    try:
+        decoder.set_align_text(" ".join(words))
+        for second in (False, True):
+            if second:
+                decoder.set_alignment()
+            decoder.start_utt()
+            decoder.process_raw(audio, full_utt=True)
+            decoder.end_utt()
+        alignment = decoder.get_alignment()
+    except RuntimeError as error:
+        raise SpeechError(failed.format(error)) from None
+    if alignment is None:
+        raise SpeechError(failed.format("no alignment"))
+    return [
+        (w.name, [(p.name, p.start * FRAME_S, (p.start + p.duration) * FRAME_S) for p in w])
+        for w in alignment
+    ]
+
+
+def _stressed(word: str, phones: list[tuple[str, float, float]], guess: WordPhones | None) -> list:
+    """``phones`` of an aligned English word with stress digits from the CMU dictionary (or the
+    letter-to-sound ``guess``) pronunciation that has the same phones; unchanged without one."""
+    labels = [p[0] for p in phones]
+    candidates = [*cmu_pronunciations(word.split("(")[0]), *([guess.phones] if guess else [])]
+    match = next((pron for pron in candidates if [label for label, _ in pron] == labels), None)
+    if match is None:
+        return phones
+    return [
+        (label + ("" if s is None else str(s)), a, b)
+        for (label, a, b), (_, s) in zip(phones, match, strict=True)
+    ]
+
+
+def align_audio(wav_path: str | Path, transcript: str, *, language: str = "en") -> PhoneTimings:
+    """Phone timings of a recording of ``transcript`` (see the module docstring).
+
+    Parameters
+    ----------
+    wav_path : path-like
+        A PCM WAV file (8/16/24/32-bit, any rate and channel count; channels are averaged).
+    transcript : str
+        Exactly what is said; numbers and punctuation are fine (English is read by
+        ``text_to_phonemes``, Northern Sotho by ``nso.nso_to_phonemes``).
+    language : {"en", "nso"}
+
+    Returns
+    -------
+    PhoneTimings
+        From 0 s at the start of the audio, tiling it on a 10 ms grid: pauses as ``SILENCE``,
+        ``words`` the transcript's spoken words (English numbers spelled out).
+
+    Raises
+    ------
+    MissingExtraError
+        pocketsphinx (extra ``[speech]``) is not installed.
+    SpeechError
+        The audio cannot be read (see ``read_wav``), the transcript has no words or cannot be read,
+        or the alignment fails.
+    """
+    if language not in LANGUAGES:
+        raise SpeechError(f"unknown language {language!r}; mimetic speaks {', '.join(LANGUAGES)}")
+    spoken = [
+        w
+        for w in (text_to_phonemes if language == "en" else nso.nso_to_phonemes)(transcript)
+        if not w.is_pause
+    ]
+    if not spoken:
+        raise SpeechError(f"the transcript {transcript!r} has no words to align")
+    audio = pcm16(*read_wav(wav_path))
+    decoder = _decoder()
+    if language == "en":
+        for w in spoken:
+            if decoder.lookup_word(w.text) is None:
+                decoder.add_word(w.text, " ".join(label for label, _ in w.phones))
+        keys = [w.text for w in spoken]
+    else:  # each Sepedi word as a made-up English word of its nearest English phones
+        keys = [f"nso{i}" for i in range(len(spoken))]
+        for key, w in zip(keys, spoken, strict=True):
+            decoder.add_word(key, " ".join(a for label, _ in w.phones for a in nso.TO_ARPABET[label]))
+    aligned = _align(decoder, audio, keys)
+    log.debug("aligned %d words to %s", len(spoken), wav_path)
+    if language == "en":
+        guesses = {w.text: w for w in spoken}
+        words = [(name, _stressed(name, phones, guesses.get(name.split("(")[0]))) for name, phones in aligned]
+    else:
+        words = [_join_nso(name, phones, spoken, keys) for name, phones in aligned]
+    return timings_from_words(words, language=language, source=str(wav_path))
+
+
+def _join_nso(name: str, phones: list, spoken: list[WordPhones], keys: list[str]) -> tuple[str, list]:
+    """An aligned made-up word back as its Sepedi word and phones: each phone spans the English
+    phones it was aligned as."""
+    if name not in keys:
+        return name, phones  # a pause
+    word = spoken[keys.index(name)]
+    joined, k = [], 0
+    for label, _ in word.phones:
+        n = len(nso.TO_ARPABET[label])
+        joined.append((label, phones[k][1], phones[k + n - 1][2]))
+        k += n
+    return word.text, joined
+
+
+def synthesize(text: str, wav_path: str | Path, *, voice: str = "en-us") -> Path:
+    """Speak ``text`` into a WAV file with the ``espeak-ng`` program (run as a separate process);
+    ``align_audio(wav_path, text)`` then gives timings that match the sound.
+
+    Parameters
+    ----------
+    text : str
+    wav_path : path-like
+        The WAV file to write (22,050 Hz mono 16-bit); written atomically.
+    voice : str
+        An espeak-ng voice (``espeak-ng --voices``). espeak-ng has no Northern Sotho voice;
+        "tn" (Setswana, a close relative) is a rough stand-in that misreads some Sepedi spellings.
+
+    Raises
+    ------
+    SpeechError
+        espeak-ng is not installed, or fails (e.g. an unknown voice).
+    """
+    program = shutil.which("espeak-ng")
+    if program is None:
+        raise SpeechError(
+            "synthesize needs the espeak-ng program (e.g. apt-get install espeak-ng, or brew install "
+            "espeak-ng); without it, use naive_timings for timings from text"
+        )
+    with atomic_path(wav_path, keep_suffix=True) as tmp:
+        result = subprocess.run(
+            [program, "-v", voice, "-w", str(tmp), "--stdin"],
+            input=text,
+            capture_output=True,
+            text=True,
+            timeout=ESPEAK_TIMEOUT_S,
+            check=False,
+        )
+        if result.returncode != 0:
+            raise SpeechError(
+                f"espeak-ng -v {voice} failed (exit {result.returncode}): {result.stderr.strip()}"
+            )
+    return Path(wav_path)

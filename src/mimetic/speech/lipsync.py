@@ -1,0 +1,133 @@
+"""One call from what a user has (text, a timing file, or audio with its transcript) to a clip.
+
+``lip_sync`` picks the timing source, coarticulates (``coarticulation``), optionally adds blinks and
+saccades, and makes the clip last as long as the audio, so a video never cuts the sound.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mimetic.errors import SpeechError
+from mimetic.rig.activations import Clip
+from mimetic.rig.model import Rig
+from mimetic.speech.align import align_audio, read_wav, synthesize
+from mimetic.speech.coarticulation import add_eye_motion, coarticulate, linear_clip
+from mimetic.speech.phones import SILENCE, Phone, PhoneTimings
+from mimetic.speech.timings import load_timings, naive_timings
+from mimetic.speech.visemes import VisemeMap
+
+PathLike = str | os.PathLike[str]
+TAIL_S = 0.4
+"""Silence added after the last phone when the timings end on a sound: the face relaxes to rest."""
+
+
+@dataclass(frozen=True)
+class Speech:
+    """A lip-synced performance: its phone ``timings``, the ``clip`` of activations and the ``audio``
+    it plays with (None for none); ``source`` says where the timings came from."""
+
+    timings: PhoneTimings
+    clip: Clip
+    audio: Path | None
+    source: str
+
+
+def _timings(
+    text: str | None,
+    timings: PathLike | None,
+    audio: PathLike | None,
+    synthesize_to: PathLike | None,
+    language: str,
+    rate: float,
+) -> tuple[PhoneTimings, Path | None, str]:
+    if timings is not None:
+        if synthesize_to is not None:
+            raise SpeechError("synthesized audio needs text, not a timing file; give one or the other")
+        return load_timings(timings, language=language), _path(audio), f"timings {timings}"
+    if not text or not text.strip():
+        raise SpeechError("nothing to say: give text (--text), a timing file (--timings) or audio with text")
+    if audio is not None and synthesize_to is not None:
+        raise SpeechError("give either recorded audio (--audio) or --synthesize, not both")
+    if synthesize_to is not None:
+        audio = synthesize(text, synthesize_to)
+    if audio is not None:
+        return align_audio(audio, text, language=language), Path(audio), f"aligned to {audio}"
+    return naive_timings(text, language=language, rate=rate), None, f"text at rate {rate:g}"
+
+
+def _path(audio: PathLike | None) -> Path | None:
+    if audio is None:
+        return None
+    path = Path(audio)
+    if not path.is_file():
+        raise SpeechError(f"audio {path} not found")
+    return path
+
+
+def _with_tail(timings: PhoneTimings) -> PhoneTimings:
+    """``timings`` ending in a pause of ``TAIL_S`` (unless they already end in one)."""
+    if not timings.phones or timings.phones[-1].label == SILENCE:
+        return timings
+    tail = Phone(SILENCE, timings.end_s, timings.end_s + TAIL_S)
+    return PhoneTimings((*timings.phones, tail), timings.language, timings.words)
+
+
+def _hold(clip: Clip, rig: Rig, seconds: float) -> Clip:
+    """``clip`` extended with the rest pose to cover ``seconds`` (at least one frame past its end)."""
+    frames = math.floor(seconds * clip.fps + 1e-9) + 1
+    if frames <= clip.n_frames:
+        return clip
+    rest = np.array([rig.channels[rig.channel_index(name)].default for name in clip.channels])
+    tail = np.tile(rest, (frames - clip.n_frames, 1))
+    return Clip(clip.channels, np.concatenate([clip.values, tail]), clip.fps)
+
+
+def lip_sync(
+    rig: Rig,
+    *,
+    text: str | None = None,
+    timings: PathLike | None = None,
+    audio: PathLike | None = None,
+    synthesize_to: PathLike | None = None,
+    language: str = "en",
+    fps: float = 30.0,
+    visemes: VisemeMap | str | None = None,
+    jaw: float = 1.0,
+    lips: float = 1.0,
+    rate: float = 1.0,
+    eyes: bool = False,
+    seed: int = 0,
+    baseline: bool = False,
+) -> Speech:
+    """Lip sync for ``rig`` from one source:
+
+    * ``timings``: a phone timing file (TextGrid, CSV, JSON, pocketsphinx alignment JSON);
+    * ``audio`` (WAV) with its transcript ``text``: forced alignment (pocketsphinx, extra ``[speech]``);
+    * ``text`` and ``synthesize_to`` (a WAV path): speech synthesized by the ``espeak-ng`` program,
+      then aligned, so the mouth matches the sound;
+    * ``text`` alone: naive timing at ``rate`` (2 = twice as fast).
+
+    ``visemes`` is a map name ("en", "nso", "mpeg4"), a ``VisemeMap`` or None (the language's own);
+    ``jaw`` and ``lips`` (0..2) are the JALI-style intensity dials; ``eyes`` adds blinks and saccades
+    (seeded by ``seed``); ``baseline`` gives the linear-interpolation baseline instead of the
+    coarticulated curves. The clip is at ``fps``, ends at rest (timings that end on a sound get a
+    pause of ``TAIL_S``) and lasts at least as long as the audio.
+    """
+    phones, sound, source = _timings(text, timings, audio, synthesize_to, language, rate)
+    phones = _with_tail(phones)
+    if baseline:
+        clip = linear_clip(phones, rig, fps, viseme_map=visemes)
+    else:
+        clip = coarticulate(phones, rig, fps, viseme_map=visemes, jaw=jaw, lips=lips)
+    if sound is not None:
+        samples, sample_rate = read_wav(sound)
+        clip = _hold(clip, rig, len(samples) / sample_rate)
+    if eyes:
+        clip = add_eye_motion(clip, rig, seed=seed)
+    return Speech(phones, clip, sound, source)

@@ -1,0 +1,118 @@
+"""Lip sync end to end: ``speech.lipsync.lip_sync`` and ``mimetic speak`` (clip, video with sound,
+scene files, timings), against the data and the phones they were given."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import wave
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+
+from mimetic.animate.clip import load_clip
+from mimetic.errors import SpeechError
+from mimetic.rig.format import save_rig
+from mimetic.speech.coarticulation import EYE_CHANNELS
+from mimetic.speech.lipsync import lip_sync
+from mimetic.speech.timings import load_timings
+from mimetic.testing import require_shared_data, run_cli, small_rig
+
+LIBRIVOX = "sense_and_sensibility_01_austen_64kb-0870"
+
+
+def seconds_of(wav) -> float:
+    with wave.open(str(wav)) as f:
+        return f.getnframes() / f.getframerate()
+
+
+@pytest.fixture(scope="module")
+def rig_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("speak") / "small.mrig"
+    save_rig(small_rig(), path)
+    return path
+
+
+def test_text_alone_closes_the_lips_at_each_bilabial_and_rests_at_the_end():
+    rig = small_rig()
+    speech = lip_sync(rig, text="Bob bought a map.", fps=30)
+    jaw = speech.clip.values[:, speech.clip.channels.index("jaw_open")]
+    centres = [(p.start_s + p.end_s) / 2 for p in speech.timings.spoken() if p.label in ("B", "M", "P")]
+    assert len(centres) == 5  # B AA B / B AA T / AH / M AE P
+    vowels = [(p.start_s + p.end_s) / 2 for p in speech.timings.spoken() if p.label in ("AA", "AE")]
+    closed = jaw[np.round(np.array(centres) * 30).astype(int)]
+    opened = jaw[np.round(np.array(vowels) * 30).astype(int)]
+    assert closed.max() < 0.5 * opened.min()  # the jaw closes at every bilabial, opens at every vowel
+    assert speech.audio is None and speech.source.startswith("text")
+    rest = np.array([c.default for c in rig.channels])
+    np.testing.assert_allclose(speech.clip.values[-1], rest, atol=0.02)  # back to rest after the final stop
+
+
+def test_recorded_audio_is_aligned_and_the_clip_lasts_as_long_as_the_sound():
+    pytest.importorskip("pocketsphinx")
+    folder = require_shared_data("speech/librivox")
+    wav = folder / f"{LIBRIVOX}.wav"
+    text = wav.with_suffix(".txt").read_text()
+    speech = lip_sync(small_rig(), text=text, audio=wav, fps=25, eyes=True)
+    still = lip_sync(small_rig(), text=text, audio=wav, fps=25)
+    assert speech.clip.duration_s >= seconds_of(wav)  # never cut the sound
+    assert speech.audio == wav
+    reference = load_timings(wav.with_suffix(".phone.json"))
+    assert [p.label for p in speech.timings.spoken()] == [p.label for p in reference.spoken()]
+    eyes = [speech.clip.channels.index(c) for c in EYE_CHANNELS]
+    others = np.setdiff1d(np.arange(len(speech.clip.channels)), eyes)
+    assert np.ptp(speech.clip.values[:, eyes], axis=0).min() > 0  # blinks and saccades in 7 s
+    np.testing.assert_array_equal(speech.clip.values[:, others], still.clip.values[:, others])
+
+
+def test_conflicting_or_missing_sources_are_refused():
+    rig = small_rig()
+    with pytest.raises(SpeechError, match="nothing to say"):
+        lip_sync(rig, text="   ")
+    with pytest.raises(SpeechError, match="not both"):
+        lip_sync(rig, text="hi", audio="a.wav", synthesize_to="b.wav")
+    with pytest.raises(SpeechError, match="not found"):
+        grid = require_shared_data("speech/praatio/bobby_phones.TextGrid")
+        lip_sync(rig, timings=grid, audio="missing.wav")
+
+
+def test_speak_writes_the_clip_and_the_timings(rig_file, tmp_path):
+    out, grid = tmp_path / "hello.json", tmp_path / "hello.TextGrid"
+    result = run_cli(
+        "speak", rig_file, "--text", "Hello, Bob.", "-o", out, "--timings-out", grid, "--fps", 24
+    )
+    assert result.exit_code == 0, result.output
+    clip = load_clip(out).sample(24, channels=small_rig())
+    timings = load_timings(grid)
+    assert [p.label for p in timings.spoken()] == ["HH", "AH", "L", "OW", "B", "AA", "B"]
+    assert timings.phones[-1].label == "SIL"  # the face relaxes after the last word
+    assert clip.duration_s == pytest.approx(timings.end_s, abs=2 / 24)
+    assert json.loads(out.read_text())["format"]
+
+
+def test_speak_video_carries_the_whole_recording(rig_file, tmp_path):
+    wav = require_shared_data("speech/praatio/bobby.wav")
+    grid = wav.with_name("bobby_phones.TextGrid")
+    out = tmp_path / "bobby.mp4"
+    result = run_cli("speak", rig_file, "--timings", grid, "--audio", wav, "-o", out, "--size", 64)
+    assert result.exit_code == 0, result.output
+    streams = subprocess.run(
+        [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", str(out)], capture_output=True
+    ).stderr.decode()
+    assert "Audio: aac" in streams
+    frames = imageio_ffmpeg.count_frames_and_secs(str(out))[0]
+    assert frames / 30 >= seconds_of(wav) - 1 / 30
+
+
+def test_speak_northern_sotho_and_bad_input(rig_file, tmp_path):
+    out = tmp_path / "dumela.csv"
+    result = run_cli("speak", rig_file, "--text", "Dumela, o kae?", "--language", "nso", "-o", out)
+    assert result.exit_code == 0, result.output
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[0] == "time_s" and "jaw_open" in header
+    bad = run_cli("speak", rig_file, "--text", "hello", "-o", tmp_path / "x.txt")
+    assert bad.exit_code != 0 and ".mp4" in bad.output
+    unknown = run_cli("speak", rig_file, "--text", "Dumela 7", "--language", "nso", "-o", tmp_path / "y.json")
+    assert unknown.exit_code == 1 and "7" in unknown.output
+    assert not (tmp_path / "y.json").exists()
