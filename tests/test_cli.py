@@ -99,6 +99,8 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         *(f"expressions_{engine}.png" for engine in ENGINES if engine != "wire"),
         "expressions_engines.png",
         "jaw_drop_tissue.mp4",
+        "talk.mp4",
+        "talk.clip.json",
     ):
         assert (out / name).stat().st_size > 1000, name
     assert len(list((out / "rigs").glob("seed_*.mrig"))) == 8

@@ -15,8 +15,10 @@ wire engine).
 
 It also animates the default head: an expression sequence as a keyframed clip
 (``animation.clip.json``), an animated GLB with one named morph target per muscle and the
-skeleton (``animation.glb``), the same clip rendered to ``animation.mp4``, and the ARKit-52
-blendshapes baked from the muscle rig as a GLB (``head_arkit.glb``).
+skeleton (``animation.glb``), the same clip rendered to ``animation.mp4``, the ARKit-52
+blendshapes baked from the muscle rig as a GLB (``head_arkit.glb``), and a talking head: a sentence
+lip-synced with coarticulation, blinks and saccades (``talk.clip.json``), rendered with its sound
+(``talk.mp4``, spoken by espeak-ng into ``talk.wav`` when that program is installed).
 
 Real scanned heads (ICT-FaceKit, from the shared test data) are rigged by ``examples/real_heads.py``,
 which ``make demo`` runs after this job; the library itself knows no particular head.
@@ -111,19 +113,22 @@ def run_demo(
     engines = {name: make_engine(default_rig, name) for name in ENGINES}
     files += _action_sheets(default_rig, engines, out, renderer, tick)
     files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer, tick)
-    files += _animation(default_rig, engines["wire"], out, renderer, tick)
-    return DemoResult(out, tuple(files))
+    animated, notes = _animation(default_rig, engines["wire"], out, renderer, tick)
+    return DemoResult(out, tuple(files + animated), tuple(notes))
 
 
 ANIMATION = ((0.0, "rest"), (1.0, "joy"), (2.0, "surprise"), (3.0, "anger"), (4.0, "sadness"), (5.0, "rest"))
 ANIMATION_FPS = 30
-ANIMATION_STEPS = ("bake", "clip and GLB", "MP4", "ARKit-52 GLB")
+ANIMATION_STEPS = ("bake", "clip and GLB", "MP4", "ARKit-52 GLB", "talking head")
+TALK = (
+    "Hello! I am a mimetic head. My muscles move my face when I speak, so the lips meet at every b, p and m."
+)
 
 
 def _animation(
     rig: Rig, engine: Engine, out: Path, renderer: Renderer, tick: Callable[[], None]
-) -> list[Path]:
-    """An expression sequence as a clip, an animated GLB, an MP4; and the ARKit-52 GLB."""
+) -> tuple[list[Path], list[str]]:
+    """An expression sequence as a clip, an animated GLB, an MP4; the ARKit-52 GLB; a talking head."""
     from mimetic.animate.clip import from_expressions, save_clip
     from mimetic.engines.bake import bake
     from mimetic.export.arkit import arkit_shapes
@@ -142,7 +147,40 @@ def _animation(
     tick()
     files.append(export_glb(rig, out / "head_arkit.glb", morph_targets=arkit_shapes(engine)))
     tick()
-    return files
+    talk, notes = _talk(rig, basis, out, renderer)
+    tick()
+    return files + talk, notes
+
+
+def _talk(rig: Rig, basis, out: Path, renderer: Renderer) -> tuple[list[Path], list[str]]:
+    """``TALK`` lip-synced (``talk.clip.json``) and rendered with its sound (``talk.mp4``): spoken by
+    the espeak-ng program and aligned to it (``talk.wav``) when both it and the ``[speech]`` extra are
+    here, else timed from the text alone and silent."""
+    import shutil
+
+    from mimetic.animate.clip import from_clip, save_clip
+    from mimetic.errors import MissingExtraError
+    from mimetic.speech.lipsync import lip_sync
+    from mimetic.view.video import render_clip
+
+    notes = []
+    speech = None
+    if shutil.which("espeak-ng") is None:
+        notes.append("talk.mp4 is silent and timed from the text: install espeak-ng to hear it speak")
+    else:
+        try:
+            speech = lip_sync(rig, text=TALK, synthesize_to=out / "talk.wav", eyes=True)
+        except MissingExtraError as error:
+            notes.append(f"talk.mp4 is timed from the text: {error}")
+    speech = speech or lip_sync(rig, text=TALK, eyes=True)
+    files = [] if speech.audio is None else [speech.audio]
+    files.append(save_clip(from_clip(speech.clip), out / "talk.clip.json"))
+    files.append(
+        render_clip(
+            rig, speech.clip, out / "talk.mp4", basis=basis, size=512, audio=speech.audio, renderer=renderer
+        )
+    )
+    return files, notes
 
 
 def _action_sheets(

@@ -4,6 +4,7 @@ scene files, timings), against the data and the phones they were given."""
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import wave
 
@@ -116,3 +117,21 @@ def test_speak_northern_sotho_and_bad_input(rig_file, tmp_path):
     unknown = run_cli("speak", rig_file, "--text", "Dumela 7", "--language", "nso", "-o", tmp_path / "y.json")
     assert unknown.exit_code == 1 and "7" in unknown.output
     assert not (tmp_path / "y.json").exists()
+
+
+def test_a_long_synthesized_sentence_is_spoken_and_aligned(tmp_path):
+    """espeak-ng speaks the text (a separate program, when installed) and the mouth is aligned to
+    its sound: every lip consonant of the text, in order, within the audio (the aligner may pick
+    another pronunciation's vowels; this 6.5 s sentence needs its second, wider search)."""
+    pytest.importorskip("pocketsphinx")
+    if shutil.which("espeak-ng") is None:
+        pytest.skip("the espeak-ng program is not installed (apt-get install espeak-ng)")
+    from mimetic.demo import TALK
+    from mimetic.speech.phonemes import text_to_phonemes
+
+    speech = lip_sync(small_rig(), text=TALK, synthesize_to=tmp_path / "talk.wav")
+    lip = {"B", "P", "M", "F", "V", "W"}
+    expected = [label for w in text_to_phonemes(TALK) for label, _ in w.phones if label in lip]
+    assert [p.label for p in speech.timings.spoken() if p.label in lip] == expected
+    assert speech.timings.spoken()[-1].end_s <= seconds_of(speech.audio) + 0.01
+    assert speech.clip.duration_s >= seconds_of(speech.audio)

@@ -43,6 +43,9 @@ SAMPLE_RATE = 16000
 FRAME_S = 0.01
 """pocketsphinx's frame: alignment times are multiples of it."""
 ESPEAK_TIMEOUT_S = 60.0
+WIDE_BEAMS = {"beam": 1e-80, "wbeam": 1e-60, "pbeam": 1e-80}
+"""The second try's search beams (pocketsphinx's defaults are 1e-48, 7e-29, 1e-48): a long
+synthesized sentence (6.5 s) pruned every path with the defaults and aligned with these."""
 
 
 def read_wav(path: str | Path) -> tuple[np.ndarray, int]:
@@ -95,7 +98,7 @@ def pcm16(samples: np.ndarray, rate: int) -> bytes:
     return np.clip(np.round(samples * 32768.0), -32768, 32767).astype("<i2").tobytes()
 
 
-def _decoder():
+def _decoder(wide: bool = False):
     try:
         from pocketsphinx import Decoder
     except ImportError as error:
@@ -105,7 +108,10 @@ def _decoder():
         ) from error
     # As pocketsphinx's `align` command: no language model, no best-path pass. Dither (seeded, so
     # results repeat) because digital silence, as in synthesized speech, makes the search fail.
-    return Decoder(samprate=SAMPLE_RATE, lm=None, bestpath=False, loglevel="FATAL", dither=True, seed=1)
+    beams = WIDE_BEAMS if wide else {}
+    return Decoder(
+        samprate=SAMPLE_RATE, lm=None, bestpath=False, loglevel="FATAL", dither=True, seed=1, **beams
+    )
 
 
 def _align(decoder, audio: bytes, words: list[str]) -> list[tuple[str, list[tuple[str, float, float]]]]:
@@ -148,6 +154,21 @@ def _stressed(word: str, phones: list[tuple[str, float, float]], guess: WordPhon
     ]
 
 
+def _align_words(decoder, audio: bytes, spoken: list[WordPhones], language: str) -> tuple[list[str], list]:
+    """``_align`` of the words ``spoken`` (added to the decoder's dictionary where missing): the
+    dictionary keys used and the alignment."""
+    if language == "en":
+        for w in spoken:
+            if decoder.lookup_word(w.text) is None:
+                decoder.add_word(w.text, " ".join(label for label, _ in w.phones))
+        keys = [w.text for w in spoken]
+    else:  # each Sepedi word as a made-up English word of its nearest English phones
+        keys = [f"nso{i}" for i in range(len(spoken))]
+        for key, w in zip(keys, spoken, strict=True):
+            decoder.add_word(key, " ".join(a for label, _ in w.phones for a in nso.TO_ARPABET[label]))
+    return keys, _align(decoder, audio, keys)
+
+
 def align_audio(wav_path: str | Path, transcript: str, *, language: str = "en") -> PhoneTimings:
     """Phone timings of a recording of ``transcript`` (see the module docstring).
 
@@ -184,17 +205,10 @@ def align_audio(wav_path: str | Path, transcript: str, *, language: str = "en") 
     if not spoken:
         raise SpeechError(f"the transcript {transcript!r} has no words to align")
     audio = pcm16(*read_wav(wav_path))
-    decoder = _decoder()
-    if language == "en":
-        for w in spoken:
-            if decoder.lookup_word(w.text) is None:
-                decoder.add_word(w.text, " ".join(label for label, _ in w.phones))
-        keys = [w.text for w in spoken]
-    else:  # each Sepedi word as a made-up English word of its nearest English phones
-        keys = [f"nso{i}" for i in range(len(spoken))]
-        for key, w in zip(keys, spoken, strict=True):
-            decoder.add_word(key, " ".join(a for label, _ in w.phones for a in nso.TO_ARPABET[label]))
-    aligned = _align(decoder, audio, keys)
+    try:
+        keys, aligned = _align_words(_decoder(), audio, spoken, language)
+    except SpeechError:  # the first pass pruned every path: search again with wide beams
+        keys, aligned = _align_words(_decoder(wide=True), audio, spoken, language)
     log.debug("aligned %d words to %s", len(spoken), wav_path)
     if language == "en":
         guesses = {w.text: w for w in spoken}
