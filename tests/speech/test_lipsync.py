@@ -135,3 +135,25 @@ def test_a_long_synthesized_sentence_is_spoken_and_aligned(tmp_path):
     assert [p.label for p in speech.timings.spoken() if p.label in lip] == expected
     assert speech.timings.spoken()[-1].end_s <= seconds_of(speech.audio) + 0.01
     assert speech.clip.duration_s >= seconds_of(speech.audio)
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".usda"])
+def test_speak_scenes_carry_the_animation(rig_file, tmp_path, suffix):
+    """GLB and USD (extra [usd]) hold the speech as morph-weight tracks as long as the clip."""
+    if suffix == ".usda":
+        pytest.importorskip("pxr")
+    out = tmp_path / f"hello{suffix}"
+    result = run_cli("speak", rig_file, "--text", "Hello, Bob.", "-o", out, "--fps", 24, "--no-eyes")
+    assert result.exit_code == 0, result.output
+    frames = int(result.output.split("(")[1].split()[0])
+    if suffix == ".glb":
+        from pygltflib import GLTF2
+
+        gltf = GLTF2().load(str(out))
+        times = gltf.accessors[gltf.animations[0].samplers[0].input]
+        assert times.count == frames and times.max[0] == pytest.approx((frames - 1) / 24, abs=1e-4)
+    else:
+        from pxr import Usd
+
+        stage = Usd.Stage.Open(str(out))
+        assert stage.GetEndTimeCode() - stage.GetStartTimeCode() == frames - 1
