@@ -268,7 +268,7 @@ def main() -> None:
                 verdict,
             )
         )
-        print(f"  {label}: done in {time.perf_counter() - total:.0f} s so far", flush=True)
+        print(f"  {label}: done in {time.perf_counter() - total:.0f} s so far: {rows[-1]}", flush=True)
     widths = [max(len(str(r[i])) for r in (header, *rows)) for i in range(len(header))]
     for r in (header, tuple("-" * w for w in widths), *rows):
         print(" | ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)))
