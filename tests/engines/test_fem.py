@@ -238,3 +238,20 @@ def test_the_mouth_lining_follows_the_lips_it_continues():
     np.testing.assert_allclose(moved[volume.cavity], moved[source] * volume.cavity_fall[:, None], atol=1e-12)
     nearest = np.linalg.norm(rig.mesh.vertices[volume.cavity] - rig.mesh.vertices[source], axis=1)
     assert np.all(np.diff(volume.cavity_fall[np.argsort(nearest)]) <= 1e-12)  # less the deeper it lies
+
+
+def test_loads_do_not_push_into_a_lip_with_no_bone_behind_it():
+    """Where a tissue column hangs (the lips), no muscle's load points inward along the tissue
+    normal: over bone the bone takes such a push, in a lip it rolled the lip in over the teeth. Over
+    bone the loads keep their inward part (the vector engine's field, unchanged)."""
+    engine = fem()
+    volume = engine.volume
+    k = volume.n_skin
+    loads = muscle_loads(engine.rig, volume)
+    column = loads.forces.toarray().reshape(3, k, 3, -1).sum(axis=0)  # (k, 3, c) under each skin node
+    push = np.einsum("kic,ki->kc", column, volume.normals)  # (k, c) outward component
+    hanging = ~volume.pinned[2 * k :]
+    assert hanging.sum() > 20
+    scale = np.abs(column).max()
+    assert push[hanging].min() >= -1e-12 * scale
+    assert push[~hanging].min() < -1e-3 * scale  # elsewhere the fields do push in
