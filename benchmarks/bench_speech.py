@@ -53,7 +53,6 @@ Three tables, after the load average at the start (the machine is shared; times 
 from __future__ import annotations
 
 import argparse
-import difflib
 import os
 import statistics
 import time
@@ -67,7 +66,7 @@ from mimetic.speech.align import align_audio, read_wav
 from mimetic.speech.coarticulation import coarticulate, linear_clip
 from mimetic.speech.lipsync import TAIL_S, lip_sync
 from mimetic.speech.phones import SILENCE, Phone, PhoneTimings
-from mimetic.speech.timings import load_timings, naive_timings
+from mimetic.speech.timings import boundary_errors, load_timings, naive_timings
 from mimetic.speech.visemes import channel_group, phone_targets, viseme_map
 from mimetic.testing import shared_data_dir, small_rig
 
@@ -116,19 +115,6 @@ def centre_frame(phone: Phone, fps: float = FPS) -> int:
 
 
 # --------------------------------------------------------------------------- 1. alignment accuracy
-
-
-def boundary_errors(result: PhoneTimings, reference: PhoneTimings) -> tuple[np.ndarray, int, int]:
-    """Absolute start and end errors (s) of the spoken phones matched in order (``difflib`` on the
-    labels, as ``tests/speech/test_align.py``), the number matched and the reference's spoken phones."""
-    ours, ref = result.spoken(), reference.spoken()
-    matcher = difflib.SequenceMatcher(None, [p.label for p in ours], [p.label for p in ref], autojunk=False)
-    errors = []
-    for block in matcher.get_matching_blocks():
-        for k in range(block.size):
-            a, b = ours[block.a + k], ref[block.b + k]
-            errors += [abs(a.start_s - b.start_s), abs(a.end_s - b.end_s)]
-    return np.array(errors), len(errors) // 2, len(ref)
 
 
 def accuracy_cells(errors: np.ndarray, matched: int, total: int) -> tuple[list[str], bool]:
@@ -196,7 +182,8 @@ def bench_alignment(shared: Path | None, rounds: int) -> None:
         naive = naive_timings(transcript)
         naive_s = time.perf_counter() - start
         for method, timings, s in (("align", result, statistics.median(seconds)), ("naive", naive, naive_s)):
-            results[method][name] = (*boundary_errors(timings, ref), s, len(samples) / rate)
+            errors, matched = boundary_errors(timings, ref)
+            results[method][name] = (errors, matched, len(ref.spoken()), s, len(samples) / rate)
     for method in results:
         librivox = [results[method][u] for u in UTTERANCES]
         results[method]["LibriVox pooled"] = (

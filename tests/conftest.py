@@ -1,4 +1,6 @@
-"""Shared fixtures: tiny meshes with known answers (built by ``mimetic.testing``), and a GL renderer.
+"""Shared fixtures: tiny meshes with known answers (built by ``mimetic.testing``), a GL renderer, and
+the small rig with its wire engine (a module may override ``rig``, e.g. with the full-resolution head;
+``engine`` follows it).
 
 Meshes are immutable (read-only arrays), so the fixtures are session-scoped.
 """
@@ -12,6 +14,7 @@ import pytest
 import trimesh
 
 from mimetic import testing
+from mimetic.engines import make_engine
 from mimetic.errors import RenderError
 from mimetic.mesh.model import Mesh
 from mimetic.render import Renderer
@@ -58,3 +61,13 @@ def sphere() -> Mesh:
 def torus() -> Mesh:
     """A torus in the XY plane (non-convex: it hides parts of itself)."""
     return to_mesh(trimesh.creation.torus(major_radius=1.0, minor_radius=0.35))
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return testing.small_rig()
+
+
+@pytest.fixture(scope="module")
+def engine(rig):
+    return make_engine(rig, "wire")

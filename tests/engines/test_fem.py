@@ -240,18 +240,24 @@ def test_the_mouth_lining_follows_the_lips_it_continues():
     assert np.all(np.diff(volume.cavity_fall[np.argsort(nearest)]) <= 1e-12)  # less the deeper it lies
 
 
-def test_loads_do_not_push_into_a_lip_with_no_bone_behind_it():
-    """Where a tissue column hangs (the lips), no muscle's load points inward along the tissue
-    normal: over bone the bone takes such a push, in a lip it rolled the lip in over the teeth. Over
-    bone the loads keep their inward part (the vector engine's field, unchanged)."""
+def test_loads_do_not_push_into_a_lip_the_tissue_can_roll():
+    """For the tissue engine (``rollable``), where a tissue column hangs (the lips) no muscle's load
+    points inward along the tissue normal: over bone the bone takes such a push, in a lip it rolled
+    the lip in over the teeth. Over bone the loads keep their inward part (the vector engine's
+    field), and the linear fem's loads keep it everywhere."""
     engine = fem()
     volume = engine.volume
     k = volume.n_skin
-    loads = muscle_loads(engine.rig, volume)
-    column = loads.forces.toarray().reshape(3, k, 3, -1).sum(axis=0)  # (k, 3, c) under each skin node
-    push = np.einsum("kic,ki->kc", column, volume.normals)  # (k, c) outward component
     hanging = ~volume.pinned[2 * k :]
     assert hanging.sum() > 20
-    scale = np.abs(column).max()
-    assert push[hanging].min() >= -1e-12 * scale
-    assert push[~hanging].min() < -1e-3 * scale  # elsewhere the fields do push in
+
+    def push(rollable: bool) -> np.ndarray:
+        """(k, c) each column's load along the outward tissue normal, over the largest load."""
+        loads = muscle_loads(engine.rig, volume, rollable=rollable).forces.toarray()
+        column = loads.reshape(3, k, 3, -1).sum(axis=0)  # (k, 3, c) under each skin node
+        return np.einsum("kic,ki->kc", column, volume.normals) / np.abs(column).max()
+
+    rolled, linear = push(True), push(False)
+    assert rolled[hanging].min() >= -1e-12
+    assert linear[hanging].min() < -1e-3  # the Waters fields do push into the lips
+    assert rolled[~hanging].min() < -1e-3  # and over bone, in both

@@ -17,26 +17,15 @@ from mimetic.animate.arkit import (
     arkit_pose,
     arkit_table,
 )
-from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.export.arkit import arkit_shapes, arkit_weights, prepare_arkit_fit, side_weights
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import surface_positions
-from mimetic.testing import require_shared_data, small_rig
+from mimetic.testing import require_shared_data
 
 STILL_CM = 0.02  # "does not move" on a 23 cm head
 ICT_FACE = slice(0, 9409)  # ICT's "Face" part (meta.json, inclusive range 0-9408)
 ICT_MIN_COSINE = 0.5  # measured 0.65 (browInnerUp_L) … 0.91 (jawOpen); unrelated pairs 0.0-0.2
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return small_rig()
-
-
-@pytest.fixture(scope="module")
-def engine(rig):
-    return make_engine(rig, "wire")
 
 
 @pytest.fixture(scope="module")

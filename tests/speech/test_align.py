@@ -1,15 +1,14 @@
 """Tests for mimetic.speech.align: WAV reading, pocketsphinx alignment accuracy, espeak-ng speech.
 
 Accuracy is measured as boundary error: the spoken phones of the alignment and of the reference are
-matched in order (``difflib`` on their labels), and each matched phone's start and end are compared
-with the reference's. The LibriVox references are pocketsphinx's own forced alignments (made by its
-``align`` command with the same bundled model), so they check that ``align_audio`` reproduces
-pocketsphinx; praatIO's "bobby" TextGrid is hand-labelled, an independent check.
+matched in order (``timings.boundary_errors``: ``difflib`` on their labels), and each matched phone's
+start and end are compared with the reference's. The LibriVox references are pocketsphinx's own
+forced alignments (made by its ``align`` command with the same bundled model), so they check that
+``align_audio`` reproduces pocketsphinx; praatIO's "bobby" TextGrid is hand-labelled, an independent check.
 """
 
 from __future__ import annotations
 
-import difflib
 import os
 import shutil
 import sys
@@ -22,8 +21,8 @@ from mimetic.errors import MissingExtraError, SpeechError
 from mimetic.speech import nso
 from mimetic.speech.align import FRAME_S, align_audio, pcm16, read_wav, synthesize
 from mimetic.speech.phonemes import ARPABET, text_to_phonemes
-from mimetic.speech.phones import SILENCE, PhoneTimings
-from mimetic.speech.timings import load_timings
+from mimetic.speech.phones import SILENCE
+from mimetic.speech.timings import boundary_errors, load_timings
 from mimetic.testing import require_shared_data
 
 ON_CI = os.environ.get("CI", "").lower() == "true"
@@ -67,20 +66,6 @@ def write_wav(path, samples: np.ndarray, rate: int, width: int = 2) -> None:
         wav.setsampwidth(width)
         wav.setframerate(rate)
         wav.writeframes(data)
-
-
-def boundary_errors(result: PhoneTimings, reference: PhoneTimings) -> tuple[np.ndarray, float]:
-    """Absolute start and end errors (s) of the spoken phones matched in order, and the fraction of
-    the reference's spoken phones that were matched."""
-    ours, ref = result.spoken(), reference.spoken()
-    matcher = difflib.SequenceMatcher(None, [p.label for p in ours], [p.label for p in ref], autojunk=False)
-    errors = []
-    for block in matcher.get_matching_blocks():
-        for k in range(block.size):
-            a, b = ours[block.a + k], ref[block.b + k]
-            errors += [abs(a.start_s - b.start_s), abs(a.end_s - b.end_s)]
-    matched = len(errors) / 2 / len(ref)
-    return np.array(errors), matched
 
 
 # --------------------------------------------------------------------------- audio
@@ -139,7 +124,8 @@ def test_align_audio_librivox_matches_reference_boundaries(pocketsphinx, utteran
     transcript = require_shared_data(f"{LIBRIVOX}{utterance}.txt").read_text()
     reference = load_timings(require_shared_data(f"{LIBRIVOX}{utterance}.phone.json"))
     result = align_audio(wav, transcript)
-    errors, matched = boundary_errors(result, reference)
+    errors, count = boundary_errors(result, reference)
+    matched = count / len(reference.spoken())
     median, within = float(np.median(errors)), float(np.mean(errors <= WITHIN_S))
     print(
         f"{utterance}: median {median * 1000:.1f} ms, {within:.1%} within 50 ms, {matched:.1%} phones matched"
@@ -158,7 +144,8 @@ def test_align_audio_bobby_48k_is_close_to_hand_labels(pocketsphinx):
         assert w.getframerate() == 48000  # resampled to 16 kHz by align_audio
     reference = load_timings(require_shared_data("speech/praatio/bobby_phones.TextGrid"))
     result = align_audio(wav, "Bobby ripped the ledger.")
-    errors, matched = boundary_errors(result, reference)
+    errors, count = boundary_errors(result, reference)
+    matched = count / len(reference.spoken())
     median, within = float(np.median(errors)), float(np.mean(errors <= WITHIN_S))
     print(
         f"bobby: median {median * 1000:.1f} ms, {within:.1%} within 50 ms, max {errors.max() * 1000:.0f} ms"

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mimetic.engines import make_engine
 from mimetic.errors import SpeechError
 from mimetic.rig.activations import Clip
 from mimetic.speech.coarticulation import (
@@ -18,23 +17,12 @@ from mimetic.speech.coarticulation import (
 )
 from mimetic.speech.phones import SILENCE, Phone, PhoneTimings
 from mimetic.speech.visemes import channel_group, load_viseme_map, phone_targets, viseme_map
-from mimetic.testing import small_rig
 
 BILABIAL = ("P", "B", "M")
 SENTENCE = (  # "my mom bought a map by the pub", durations in ms, a pause after "map"
     "M:70 AY:160 M:60 AA:130 M:70 B:60 AO:140 T:60 AH:50 M:70 AE:150 P:80 SIL:250 "
     "B:60 AY:150 DH:40 AH:60 P:70 AH:110 B:80"
 )
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return small_rig()
-
-
-@pytest.fixture(scope="module")
-def engine(rig):
-    return make_engine(rig, "wire")
 
 
 def _timings(spec: str, language: str = "en", start_s: float = 0.3, tail_s: float = 0.3) -> PhoneTimings:

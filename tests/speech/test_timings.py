@@ -401,3 +401,15 @@ def test_naive_timings_length_is_close_to_librivox_speech(utterance):
     naive = naive_timings(require_shared_data(f"{LIBRIVOX}{utterance}.txt").read_text())
     ratio = sum(p.duration_s for p in naive.spoken()) / sum(p.duration_s for p in reference.spoken())
     assert 0.8 < ratio < 1.2, f"naive / spoken duration {ratio:.2f}"
+
+
+def test_boundary_errors_match_phones_in_order_and_measure_both_ends():
+    from mimetic.speech.timings import boundary_errors
+
+    reference = PhoneTimings((Phone("B", 0.0, 0.1), Phone("AA", 0.1, 0.3), Phone("B", 0.3, 0.4)))
+    shifted = PhoneTimings(
+        (Phone("B", 0.02, 0.1), Phone("AH", 0.1, 0.2), Phone("AA", 0.2, 0.32), Phone("B", 0.32, 0.4))
+    )
+    errors, matched = boundary_errors(shifted, reference)
+    assert matched == 3  # the extra AH is skipped
+    assert sorted(errors) == pytest.approx(sorted([0.02, 0.0, 0.1, 0.02, 0.02, 0.0]), abs=1e-12)

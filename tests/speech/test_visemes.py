@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from mimetic.animate import mpeg4
-from mimetic.engines import make_engine
 from mimetic.errors import SpeechError
 from mimetic.speech.phones import SILENCE
 from mimetic.speech.visemes import (
@@ -23,21 +22,10 @@ from mimetic.speech.visemes import (
     phone_targets,
     viseme_map,
 )
-from mimetic.testing import small_rig
 
 ARPABET = (
     "AA AE AH AO AW AY B CH D DH EH ER EY F G HH IH IY JH K L M N NG OW OY P R S SH T TH UH UW V W Y Z ZH"
 ).split()
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return small_rig()
-
-
-@pytest.fixture(scope="module")
-def engine(rig):
-    return make_engine(rig, "wire")
 
 
 def _landmarks(rig, vertices, names):

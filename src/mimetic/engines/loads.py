@@ -10,11 +10,12 @@ skin vertex ``i`` is its Waters motion at ``i`` times the skin area around ``i``
 not depend on the mesh's resolution). The forces are computed once on the rest geometry and are
 linear in the activations (``K q = F0 + Σ aᵢ Fᵢ``).
 
-Where no bone lies behind the tissue (the lips, ``TissueVolume.pinned``), a load's inward component
-(along the tissue normal) is dropped: a muscle pulls along the tissue, and over bone its inward push
-goes into the bone, but in a lip it rolled the lip in over the teeth (the platysma's field reaches
-the lower lip: 58 lip triangles turned over in the tissue engine under the platysma alone; over the
-expression library 169 → 42 on a 4,000-vertex head).
+For the nonlinear tissue (``rollable=True``), where no bone lies behind the tissue (the lips,
+``TissueVolume.pinned``) a load's inward component (along the tissue normal) is dropped: a muscle
+pulls along the tissue, and over bone its inward push goes into the bone, but a lip, free to turn
+in the tissue engine, rolled in over the teeth under it (the platysma's field reaches the lower lip:
+58 lip triangles turned over under the platysma alone; over the expression library 169 → 42 on a
+4,000-vertex head). Linear elasticity (``fem``) cannot turn a lip, so its loads keep the push.
 
 Their unit (force per unit of the Waters field) is arbitrary; each engine scales each muscle's load
 (``MuscleLoads.calibration``) so that the muscle does the same work on the skin as the vector
@@ -81,18 +82,20 @@ class MuscleLoads:
         return np.minimum(by_work, by_peak)
 
 
-def muscle_loads(rig: Rig, volume: TissueVolume) -> MuscleLoads:
-    """Each channel's forces on the fascia of ``volume`` at full activation (``MuscleLoads``)."""
+def muscle_loads(rig: Rig, volume: TissueVolume, *, rollable: bool = False) -> MuscleLoads:
+    """Each channel's forces on the fascia of ``volume`` at full activation (``MuscleLoads``);
+    ``rollable``: the tissue can turn a lip (module docstring), so no load pushes into one."""
     deltas = vector_deltas(rig).tocsc()  # (3n, c) on rig vertices
     n, c = rig.n_vertices, len(rig.channels)
     motion = deltas.toarray().reshape(n, 3, c)
     k = volume.n_skin
     waters = motion[volume.surface]  # (k, 3, c) at the skin nodes
     field = waters * skin_areas(volume)[:, None, None]
-    hanging = ~volume.pinned[2 * k :]  # (k,) no bone behind: the lips (and the rims cut back)
-    normal = volume.normals[hanging]  # (h, 3) outward
-    inward = np.minimum(np.einsum("hic,hi->hc", field[hanging], normal), 0.0)  # (h, c)
-    field[hanging] -= inward[:, None, :] * normal[:, :, None]  # no bone there to take a push inward
+    if rollable:
+        hanging = ~volume.pinned[2 * k :]  # (k,) no bone behind: the lips (and the rims cut back)
+        normal = volume.normals[hanging]  # (h, 3) outward
+        inward = np.minimum(np.einsum("hic,hi->hc", field[hanging], normal), 0.0)  # (h, c)
+        field[hanging] -= inward[:, None, :] * normal[:, :, None]  # no bone there to take the push
     rows = (3 * (k + np.arange(k))[:, None] + np.arange(3)).ravel()  # the fascia node under each
     dense = field.reshape(3 * k, c)
     keep = np.flatnonzero(np.abs(dense).max(axis=1) > 0)

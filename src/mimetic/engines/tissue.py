@@ -709,7 +709,7 @@ class TissueEngine:
             skull_contact=skull_contact,
             damping=damping,
         )
-        loads = muscle_loads(rig, self.volume)
+        loads = muscle_loads(rig, self.volume, rollable=True)
         self.muscles = loads.active  # (a,) channel indices
         forces = loads.forces[:, self.muscles].tocsc()  # (3N, a), unscaled
         linear = muscle_responses(self.model, forces)  # (3N, a) m

@@ -24,6 +24,7 @@ Formats (``load_timings`` picks one by suffix, else by content; ``save_timings``
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import json
 import logging
@@ -31,6 +32,8 @@ import math
 import re
 from collections.abc import Sequence
 from pathlib import Path
+
+import numpy as np
 
 from mimetic.atomic import atomic_path, atomic_write
 from mimetic.errors import SpeechError
@@ -485,3 +488,28 @@ def naive_timings(text: str, *, language: str = "en", rate: float = 1.0) -> Phon
             phones.append(Phone(label, t, t + duration / rate, stress, index))
             t += duration / rate
     return PhoneTimings(tuple(phones), language, tuple(spoken))
+
+
+def boundary_errors(timings: PhoneTimings, reference: PhoneTimings) -> tuple[np.ndarray, int]:
+    """How far the phone boundaries of ``timings`` lie from those of ``reference`` (an alignment's
+    accuracy): the spoken phones are matched in order by their labels (``difflib``, so a phone one
+    side has and the other lacks is skipped), and each matched pair gives its start and end errors.
+
+    Returns
+    -------
+    errors : (2 m,) float64
+        Absolute boundary errors, seconds, for the ``m`` matched phones.
+    matched : int
+        ``m``; ``len(reference.spoken())`` is the most there can be.
+    """
+    ours, theirs = timings.spoken(), reference.spoken()
+    matcher = difflib.SequenceMatcher(
+        None, [p.label for p in ours], [p.label for p in theirs], autojunk=False
+    )
+    errors = [
+        abs(getattr(ours[block.a + i], end) - getattr(theirs[block.b + i], end))
+        for block in matcher.get_matching_blocks()
+        for i in range(block.size)
+        for end in ("start_s", "end_s")
+    ]
+    return np.array(errors), len(errors) // 2
