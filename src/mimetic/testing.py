@@ -15,7 +15,8 @@ and the same instance may be handed to many tests or benchmark cases:
 * ``head_landmarks(head)``: a generated head's landmarks as a user's file gives them;
 * ``shared_data_dir()``, ``require_shared_data(path)``, ``load_ict(folder)``,
   ``ict_landmarks(mesh, meta)``: the real data beside the repository (``../shared/data``, or
-  ``$MIMETIC_SHARED_DATA``), for tests, benchmarks and ``examples/``;
+  ``$MIMETIC_SHARED_DATA``), for tests, benchmarks and ``examples/``; ``require_extra(module,
+  extra)``: an optional dependency (a test skips without it, except on CI);
 * ``run_cli(*args)``: the ``mimetic`` command in this process.
 
 This module imports the test-free parts of mimetic only; nothing in the package (the library,
@@ -261,19 +262,34 @@ def require_shared_data(relative: str = "") -> Path:
     On CI (``CI=true``) a missing folder fails the test instead, so CI always runs the tests on
     real data.
     """
-    import pytest
-
     root = shared_data_dir()
     path = None if root is None else root / relative
     if path is None or not path.exists():
-        reason = (
+        _missing(
             f"shared test data {relative or 'folder'!r} not found (looked in ${SHARED_DATA_ENV} and "
             "../shared/data beside the repository)"
         )
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"{reason}; CI=true requires it")
-        pytest.skip(reason)
     return path
+
+
+def require_extra(module: str, extra: str):
+    """``module``, from mimetic's optional ``extra`` (e.g. "pocketsphinx", "speech"); skips the test
+    when it is not installed, fails it on CI (``CI=true``), where every extra is."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as error:
+        _missing(f"needs {module}, in the extra [{extra}] (pip install 'mimetic[{extra}]'): {error}")
+
+
+def _missing(reason: str) -> None:
+    """Skip the running test for ``reason``; on CI (``CI=true``) fail it instead."""
+    import pytest
+
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(f"{reason}; CI=true requires it")
+    pytest.skip(reason)
 
 
 def run_cli(*args: object):

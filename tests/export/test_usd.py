@@ -10,7 +10,6 @@ a missing usd-core fails.
 from __future__ import annotations
 
 import dataclasses
-import os
 import sys
 import warnings
 from types import SimpleNamespace
@@ -30,9 +29,8 @@ from mimetic.export.usd import check_usd, export_usd, usd_names
 from mimetic.mesh.model import Mesh
 from mimetic.rig.activations import Clip
 from mimetic.rig.model import thaw_json
-from mimetic.testing import small_rig
+from mimetic.testing import require_extra, small_rig
 
-ON_CI = os.environ.get("CI", "").lower() == "true"
 CM = 0.01  # metres per centimetre: the small rig is in cm
 F32 = 2e-7  # relative float32 rounding, with margin
 POSE_TOL_M = 1e-6  # UsdSkel's float32 evaluation against gltf_vertices' float64 (head ≈ 0.23 m)
@@ -44,13 +42,9 @@ POSE_TOL_M = 1e-6  # UsdSkel's float32 evaluation against gltf_vertices' float64
 @pytest.fixture(scope="module")
 def usd():
     """The pxr modules; skips when usd-core is missing, except on CI, where it fails."""
-    try:
-        from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
-    except ImportError as error:
-        reason = f"USD tests need usd-core (pip install 'mimetic[usd]'): {error}"
-        if ON_CI:
-            pytest.fail(f"{reason} (CI=true: usd-core is required on CI)")
-        pytest.skip(reason)
+    require_extra("pxr", "usd")
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+
     return SimpleNamespace(Gf=Gf, Sdf=Sdf, Usd=Usd, UsdGeom=UsdGeom, UsdSkel=UsdSkel, Vt=Vt)
 
 

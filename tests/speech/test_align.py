@@ -9,7 +9,6 @@ forced alignments (made by its ``align`` command with the same bundled model), s
 
 from __future__ import annotations
 
-import os
 import shutil
 import sys
 import wave
@@ -23,9 +22,8 @@ from mimetic.speech.align import FRAME_S, align_audio, pcm16, read_wav, synthesi
 from mimetic.speech.phonemes import ARPABET, text_to_phonemes
 from mimetic.speech.phones import SILENCE
 from mimetic.speech.timings import boundary_errors, load_timings
-from mimetic.testing import require_shared_data
+from mimetic.testing import require_extra, require_shared_data
 
-ON_CI = os.environ.get("CI", "").lower() == "true"
 LIBRIVOX = "speech/librivox/sense_and_sensibility_01_austen_64kb-"
 UTTERANCES = ("0870", "0880", "0890", "0920", "0930")
 MEDIAN_GOAL_S = 0.025
@@ -36,14 +34,7 @@ WITHIN_GOAL = 0.9
 @pytest.fixture(scope="module")
 def pocketsphinx():
     """pocketsphinx (extra [speech]); skips when missing, except on CI, where it fails."""
-    try:
-        import pocketsphinx
-    except ImportError as error:
-        reason = f"alignment needs pocketsphinx (extra [speech]): {error}"
-        if ON_CI:
-            pytest.fail(f"{reason} (CI=true requires it)")
-        pytest.skip(reason)
-    return pocketsphinx
+    return require_extra("pocketsphinx", "speech")
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from mimetic.rig.format import save_rig
 from mimetic.speech.coarticulation import EYE_CHANNELS
 from mimetic.speech.lipsync import lip_sync
 from mimetic.speech.timings import load_timings
-from mimetic.testing import require_shared_data, run_cli, small_rig
+from mimetic.testing import require_extra, require_shared_data, run_cli, small_rig
 
 LIBRIVOX = "sense_and_sensibility_01_austen_64kb-0870"
 
@@ -51,7 +51,7 @@ def test_text_alone_closes_the_lips_at_each_bilabial_and_rests_at_the_end():
 
 
 def test_recorded_audio_is_aligned_and_the_clip_lasts_as_long_as_the_sound():
-    pytest.importorskip("pocketsphinx")
+    require_extra("pocketsphinx", "speech")
     folder = require_shared_data("speech/librivox")
     wav = folder / f"{LIBRIVOX}.wav"
     text = wav.with_suffix(".txt").read_text()
@@ -123,7 +123,7 @@ def test_a_long_synthesized_sentence_is_spoken_and_aligned(tmp_path):
     """espeak-ng speaks the text (a separate program, when installed) and the mouth is aligned to
     its sound: every lip consonant of the text, in order, within the audio (the aligner may pick
     another pronunciation's vowels; this 6.5 s sentence needs its second, wider search)."""
-    pytest.importorskip("pocketsphinx")
+    require_extra("pocketsphinx", "speech")
     if shutil.which("espeak-ng") is None:
         pytest.skip("the espeak-ng program is not installed (apt-get install espeak-ng)")
     from mimetic.demo import TALK
@@ -141,7 +141,7 @@ def test_a_long_synthesized_sentence_is_spoken_and_aligned(tmp_path):
 def test_speak_scenes_carry_the_animation(rig_file, tmp_path, suffix):
     """GLB and USD (extra [usd]) hold the speech as morph-weight tracks as long as the clip."""
     if suffix == ".usda":
-        pytest.importorskip("pxr")
+        require_extra("pxr", "usd")
     out = tmp_path / f"hello{suffix}"
     result = run_cli("speak", rig_file, "--text", "Hello, Bob.", "-o", out, "--fps", 24, "--no-eyes")
     assert result.exit_code == 0, result.output
