@@ -827,7 +827,7 @@ def speak(
             raise typer.BadParameter("give --text or --text-file, not both")
         text = text_file.read_text(encoding="utf-8")
     loaded = load_rig(rig)
-    vmap = None if visemes is None or visemes in BUILT_IN else load_viseme_map(visemes, channels=loaded)
+    vmap = visemes if visemes is None or visemes in BUILT_IN else load_viseme_map(visemes, channels=loaded)
     with tempfile.TemporaryDirectory() as scratch:
         spoken = Path(scratch) / "synthesized.wav" if synthesize else None
         speech = lip_sync(
@@ -838,7 +838,7 @@ def speak(
             synthesize_to=spoken,
             language=language.value,
             fps=fps,
-            visemes=vmap or visemes,
+            visemes=vmap,
             jaw=jaw,
             lips=lips,
             rate=rate,

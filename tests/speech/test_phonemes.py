@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from types import SimpleNamespace
 
@@ -19,19 +18,13 @@ from mimetic.speech.phonemes import (
     text_to_phonemes,
 )
 from mimetic.speech.phones import SILENCE
+from mimetic.testing import require_extra
 
 
 @pytest.fixture(scope="module")
 def gruut():
     """gruut (extra [speech]); skips when missing, except on CI, where it fails."""
-    try:
-        import gruut
-    except ImportError as error:
-        reason = f"letter-to-sound needs gruut (extra [speech]): {error}"
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"{reason} (CI=true requires it)")
-        pytest.skip(reason)
-    return gruut
+    return require_extra("gruut", "speech")
 
 
 def labels(text: str) -> list[list[str]]:
