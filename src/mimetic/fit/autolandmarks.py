@@ -5,6 +5,8 @@ angles, runs MediaPipe FaceMesh on each render (``mimetic.fit.detect.detect_face
 through each 2D landmark onto the mesh, and votes across the views. The mesh may face any
 axis-aligned direction with any axis-aligned up; the orientation is found by trying them. The
 result is a ``mimetic.fit.landmarks.Landmarks``, as a landmark file gives.
+``lift_mediapipe_points(mesh, indices)`` does the same for any FaceMesh indices and returns
+bare surface points (e.g. all 468 for a capture marker layout).
 
 This is the one module of ``fit`` that renders (``mimetic.render``, which sits below ``fit``);
 mediapipe itself is imported only when ``auto_landmarks`` first runs (see ``mimetic.fit.detect``).
@@ -21,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mimetic.errors import LandmarkError, MeshError
-from mimetic.fit.detect import detect_face
+from mimetic.fit.detect import N_LANDMARKS, detect_face
 from mimetic.fit.landmarks import MIN_LANDMARKS, Landmarks
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
@@ -31,7 +33,7 @@ from mimetic.render.renderer import Renderer, default_renderer
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MEDIAPIPE_LANDMARKS", "SOURCE_AUTO", "auto_landmarks"]
+__all__ = ["MEDIAPIPE_LANDMARKS", "SOURCE_AUTO", "auto_landmarks", "lift_mediapipe_points"]
 
 
 def _pairs(**pairs: tuple[int, int]) -> dict[str, int]:
@@ -496,6 +498,56 @@ def _detect(
         progress(len(yaws_deg) + 2, len(yaws_deg) + 2)
     log.debug("auto landmarks: %d views, IOD %.3g, %.2f s", len(views), iod, time.perf_counter() - start)
     return _Detected(rotation, score, views, iod, positions, confidence, backers)
+
+
+def lift_mediapipe_points(
+    mesh: Mesh,
+    indices: Sequence[int] | np.ndarray,
+    *,
+    yaws_deg: Sequence[float] = (0.0, -25.0, 25.0),
+    size: int = 512,
+    renderer: Renderer | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Any MediaPipe FaceMesh points on a head mesh's surface, found as ``auto_landmarks`` finds its own.
+
+    The same orientation search, renders, ray casting and vote as ``auto_landmarks`` (see there),
+    for the FaceMesh indices ``indices`` instead of ``MEDIAPIPE_LANDMARKS``.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Vertices (n, 3) in ``mesh.units``; colours are used when present, untextured is fine.
+    indices : (k,) int
+        FaceMesh landmark indices in 0..477 (468..477 are the iris points, which lie inside the
+        eye and are rarely confirmed on a mesh).
+    yaws_deg, size, renderer, progress
+        As in ``auto_landmarks``.
+
+    Returns
+    -------
+    positions : (k, 3) float64
+        Exact surface points (on a triangle of ``mesh``) in the mesh's own frame and units; NaN
+        where fewer than two views agree (one, when ``yaws_deg`` has a single angle).
+    confidence : (k,) float64
+        In [0, 1], the weighted share of views agreeing; 0 where ``positions`` is NaN.
+
+    Raises
+    ------
+    LandmarkError, MissingExtraError, MeshError
+        As in ``auto_landmarks``.
+    ValueError
+        An index outside 0..477, or bad ``yaws_deg`` or ``size``.
+    """
+    index = np.asarray(indices).reshape(-1)
+    if index.dtype.kind not in "iu" or not np.all((index >= 0) & (index < N_LANDMARKS)):
+        raise ValueError(
+            f"indices must be FaceMesh landmark numbers in 0..{N_LANDMARKS - 1}; got {indices!r}"
+        )
+    found = _detect(
+        mesh, index.astype(np.int64), yaws_deg=yaws_deg, size=size, renderer=renderer, progress=progress
+    )
+    return found.positions, found.confidence
 
 
 def auto_landmarks(
