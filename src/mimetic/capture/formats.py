@@ -29,8 +29,9 @@
   ``LABELS2`` …), the rate from ``POINT:RATE``, units from ``POINT:UNITS``; a point whose
   residual is negative is missing.
 * **OpenFace 2.x** ``FeatureExtraction`` CSV (header `` frame, timestamp, confidence, success,
-  …``): the 68 iBUG points, named ``ibug68_01`` … ``ibug68_68`` (1-based, as iBUG and
-  ``mimetic.fit.landmarks`` number them; OpenFace's column k is point k + 1). With its 3D columns ``X_k, Y_k, Z_k`` (mm, camera frame: +X right, +Y down, +Z away
+  …``): the 68 iBUG points, named ``ibug68_01`` … ``ibug68_68``
+  (1-based, as iBUG and ``mimetic.fit.landmarks`` number them: OpenFace's column k is point
+  k + 1). With its 3D columns ``X_k, Y_k, Z_k`` (mm, camera frame: +X right, +Y down, +Z away
   from the camera) the points are turned 180° about X (Y and Z negated) into mimetic's frame:
   right-handed, +Y up, +Z toward the camera, so the face looks down +Z. Without them the 2D
   columns ``x_k, y_k`` are read as they are: image pixels, +y down, units "px". A frame with

@@ -58,12 +58,14 @@ class Trajectories:
         names = tuple(str(n) for n in self.names)
         if len(set(names)) != len(names):
             repeated = sorted({n for n in names if names.count(n) > 1})
-            raise CaptureError(f"{self.source}: point names repeat ({', '.join(repeated[:5])}); names must be unique")
+            raise CaptureError(
+                f"{self.source}: point names repeat ({', '.join(repeated[:5])}); names must be unique"
+            )
         positions = np.array(self.positions, dtype=np.float64)
         if positions.ndim != 3 or positions.shape[1] != len(names) or positions.shape[2] not in (2, 3):
             raise CaptureError(
-                f"{self.source}: positions must have shape (frames, {len(names)}, 3) or (frames, {len(names)}, 2); "
-                f"got {positions.shape}"
+                f"{self.source}: positions must have shape (frames, {len(names)}, 3) or "
+                f"(frames, {len(names)}, 2); got {positions.shape}"
             )
         if np.isinf(positions).any():
             t, j, _ = np.argwhere(np.isinf(positions))[0]
@@ -73,7 +75,9 @@ class Trajectories:
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise CaptureError(f"{self.source}: fps must be a positive number; got {self.fps}")
         if self.units is not None and self.units not in LENGTH_UNITS:
-            raise CaptureError(f"{self.source}: units {self.units!r} unknown; use one of {', '.join(LENGTH_UNITS)}")
+            raise CaptureError(
+                f"{self.source}: units {self.units!r} unknown; use one of {', '.join(LENGTH_UNITS)}"
+            )
         f = len(positions)
         if self.confidence is None:
             confidence = np.ones(f)
@@ -81,7 +85,8 @@ class Trajectories:
             confidence = np.array(self.confidence, dtype=np.float64).reshape(-1)
             if confidence.shape != (f,) or not np.all((confidence >= 0) & (confidence <= 1)):
                 raise CaptureError(
-                    f"{self.source}: confidence must be ({f},) numbers in [0, 1]; got shape {confidence.shape}"
+                    f"{self.source}: confidence must be ({f},) numbers in [0, 1]; "
+                    f"got shape {confidence.shape}"
                 )
         positions.setflags(write=False)
         confidence.setflags(write=False)
