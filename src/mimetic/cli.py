@@ -813,7 +813,6 @@ def speak(
       mimetic speak head.mrig --text "Dumela, o kae?" --language nso -o dumela.mp4
       mimetic speak head.mrig --text "Hello there" --synthesize -o hello.mp4
     """
-    from mimetic.animate.clip import from_clip, save_clip, save_csv
     from mimetic.rig.format import load_rig
     from mimetic.speech.lipsync import lip_sync
     from mimetic.speech.timings import save_timings
@@ -847,28 +846,246 @@ def speak(
             baseline=baseline,
         )
         clip = speech.clip
-        suffix = out.suffix.lower()
-        if suffix == ".mp4":
-            from mimetic.view.video import render_clip
-
-            with _progress("video") as progress:
-                render_clip(
-                    loaded, clip, out, engine=engine.value, size=size, audio=speech.audio, progress=progress
-                )
-        elif suffix == ".json":
-            save_clip(from_clip(clip), out)
-        elif suffix == ".csv":
-            save_csv(clip, out)
-        else:
-            with _progress("bake") as progress:
-                targets = _muscle_targets(loaded, engine.value, progress)
-            _write_scene(loaded, out, targets, clip)
+        _write_clip(loaded, clip, out, engine=engine.value, size=size, audio=speech.audio)
     if timings_out is not None:
         save_timings(speech.timings, timings_out)
     spoken_phones = len(speech.timings.spoken())
     stdout.print(
         f"wrote {out} ({clip.n_frames} frames at {fps:g} fps, {spoken_phones} phones, {speech.source})"
     )
+
+
+capture_app = typer.Typer(
+    help="Performance capture: markers, landmarks or video → activations; retarget to another head.",
+    no_args_is_help=True,
+)
+app.add_typer(capture_app, name="capture")
+CAPTURE_OUTPUTS = (".json", ".csv", *ANIMATE_OUTPUTS)
+CaptureUnits = Enum("CaptureUnits", {u: u for u in ("mm", "cm", "m", "px")}, type=str)
+
+
+def _capture_options(channels: str, rig) -> tuple[str, ...] | None:
+    """--channels: "all" (None: every channel the markers see), "determined" (resolved later) or names."""
+    if channels in ("all", "determined"):
+        return None
+    names = tuple(n.strip() for n in channels.split(",") if n.strip())
+    unknown = [n for n in names if n not in set(rig.channel_names)]
+    if unknown:
+        raise typer.BadParameter(f"unknown channel(s) {', '.join(unknown[:5])}", param_hint="--channels")
+    return names
+
+
+def _solve_capture(
+    loaded, trajectories, *, markers, engine, neutral_frame, channels, cutoff, robust, sparsity
+):
+    """Bake the rig, pick the channels, solve; progress bars per stage."""
+    from mimetic.capture.markers import layout_for, marker_set
+    from mimetic.capture.performance import determined_channels, solve_performance
+    from mimetic.engines import make_engine
+    from mimetic.engines.bake import bake
+    from mimetic.mesh.units import UNIT_SCALE
+
+    with _progress("bake") as progress:
+        basis = bake(make_engine(loaded, engine), correctives=0, samples=2, progress=progress).basis
+    layout = markers or layout_for(trajectories.names)
+    with _progress("markers") as progress:
+        progress(0, 1)
+        placed = marker_set(loaded, layout)
+        progress(1, 1)
+    active = _capture_options(channels, loaded)
+    if channels == "determined":
+        metre = UNIT_SCALE.get(loaded.units or "", None)
+        noise = 0.001 / metre / 3**0.5 if metre else 0.005 * loaded.scale  # 1 mm, per coordinate
+        active = determined_channels(loaded, basis, placed, noise=noise)
+    with _step_progress() as progress:
+        return solve_performance(
+            loaded,
+            trajectories,
+            basis=basis,
+            markers=placed,
+            neutral_frame=neutral_frame,
+            active=active,
+            cutoff_hz=cutoff or None,
+            robust=robust,
+            sparsity=sparsity,
+            progress=progress,
+        )
+
+
+def _capture_outputs(loaded, performance, out: Path, report: Path | None, engine: str, size: int) -> None:
+    from mimetic.atomic import atomic_write
+
+    _write_clip(loaded, performance.clip, out, engine=engine, size=size)
+    summary = performance.report(loaded)
+    if report is not None:
+        with atomic_write(report, "w") as handle:
+            handle.write(json.dumps(summary, indent=2) + "\n")
+    stdout.print(
+        f"wrote {out} ({summary['frames']} frames at {summary['fps']:g} fps, "
+        f"{summary['channels_solved']} channels from {summary['markers']} {summary['layout']} markers; "
+        f"marker RMS {summary['marker_rms_median']:.3g} {loaded.units or 'units'}, "
+        f"{summary['flagged_frames']} frames flagged)"
+    )
+
+
+_MARKERS_HELP = "Marker layout: paper, ibug68, mediapipe or a marker .json (default: from the point names)."
+_CHANNELS_HELP = (
+    "Channels to solve: all (every channel the markers see), determined (those the markers pin down at 1 mm "
+    "noise) or a comma-separated list."
+)
+
+
+@command("solve", parent=capture_app)
+def capture_solve(
+    rig: Path = typer.Argument(..., metavar="RIG", help="The .mrig rig to solve on."),
+    markers_file: Path = typer.Argument(
+        ..., metavar="MARKERS", help="Trajectories: .c3d, .trc, mimetic .csv or an OpenFace .csv."
+    ),
+    out: Path = typer.Option(..., "-o", "--out", help="clip.json / .csv, or anim.mp4 / .glb / .usda."),
+    markers: str | None = typer.Option(None, "--markers", help=_MARKERS_HELP),
+    fps: float | None = typer.Option(None, "--fps", min=1e-3, help="Frame rate, when the file has none."),
+    units: CaptureUnits | None = typer.Option(None, "--units", help="Units, when the file has none."),
+    neutral_frame: int = typer.Option(0, "--neutral-frame", min=0, help="A frame with a neutral face."),
+    channels: str = typer.Option("all", "--channels", help=_CHANNELS_HELP),
+    cutoff: float = typer.Option(8.0, "--cutoff", min=0.0, help="Smoothing cutoff in Hz (0: none)."),
+    robust: bool = typer.Option(True, "--robust/--no-robust", help="Reject spikes and unexplained markers."),
+    sparsity: float = typer.Option(0.0, "--sparsity", min=0.0, help="L1 weight (activation units)."),
+    report: Path | None = typer.Option(None, "--report", help="Also write the plausibility report (.json)."),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Engine to solve against."),
+) -> None:
+    """Solve a marker or landmark capture into the rig's channel activations (head motion removed).
+
+    Examples:
+
+    \b
+      mimetic capture solve head.mrig take1.c3d -o take1.json
+      mimetic capture solve head.mrig openface.csv --fps 30 -o take.mp4 --report take.json
+      mimetic capture solve head.mrig take1.trc --markers markers.json --channels determined -o take1.glb
+    """
+    from mimetic.capture.formats import read_trajectories
+    from mimetic.rig.format import load_rig
+
+    _output(out, CAPTURE_OUTPUTS)
+    if report is not None:
+        _output(report, (".json",), "--report")
+    loaded = load_rig(rig)
+    trajectories = read_trajectories(markers_file, fps=fps, units=units.value if units else None)
+    performance = _solve_capture(
+        loaded,
+        trajectories,
+        markers=markers,
+        engine=engine.value,
+        neutral_frame=neutral_frame,
+        channels=channels,
+        cutoff=cutoff,
+        robust=robust,
+        sparsity=sparsity,
+    )
+    _capture_outputs(loaded, performance, out, report, engine.value, size)
+
+
+@command("video", parent=capture_app)
+def capture_video(
+    rig: Path = typer.Argument(..., metavar="RIG", help="The .mrig rig to solve on."),
+    video: Path = typer.Argument(..., metavar="VIDEO", help="A video of one face (MP4, MOV, …)."),
+    out: Path = typer.Option(..., "-o", "--out", help="clip.json / .csv, or anim.mp4 / .glb / .usda."),
+    landmarks_out: Path | None = typer.Option(
+        None, "--landmarks-out", help="Also write the tracked landmarks (.csv or .trc)."
+    ),
+    max_frames: int | None = typer.Option(None, "--max-frames", min=1, help="Track only the first N frames."),
+    neutral_frame: int = typer.Option(0, "--neutral-frame", min=0, help="A frame with a neutral face."),
+    channels: str = typer.Option("all", "--channels", help=_CHANNELS_HELP),
+    cutoff: float = typer.Option(8.0, "--cutoff", min=0.0, help="Smoothing cutoff in Hz (0: none)."),
+    report: Path | None = typer.Option(None, "--report", help="Also write the plausibility report (.json)."),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Engine to solve against."),
+) -> None:
+    """Track a face video with MediaPipe FaceMesh (extra [track]) and solve it into activations.
+
+    Examples:
+
+    \b
+      mimetic capture video head.mrig face.mp4 -o face.json
+      mimetic capture video head.mrig face.mp4 -o face-on-head.mp4 --landmarks-out face.csv
+    """
+    from mimetic.capture.formats import write_trajectories
+    from mimetic.capture.video import track_video
+    from mimetic.rig.format import load_rig
+
+    _output(out, CAPTURE_OUTPUTS)
+    if report is not None:
+        _output(report, (".json",), "--report")
+    if landmarks_out is not None:
+        _output(landmarks_out, (".csv", ".trc"), "--landmarks-out")
+    loaded = load_rig(rig)
+    with _progress("track") as progress:
+        trajectories = track_video(video, max_frames=max_frames, progress=progress)
+    if landmarks_out is not None:
+        write_trajectories(trajectories, landmarks_out)
+    performance = _solve_capture(
+        loaded,
+        trajectories,
+        markers="mediapipe",
+        engine=engine.value,
+        neutral_frame=neutral_frame,
+        channels=channels,
+        cutoff=cutoff,
+        robust=True,
+        sparsity=0.0,
+    )
+    _capture_outputs(loaded, performance, out, report, engine.value, size)
+
+
+@command("retarget", parent=capture_app)
+def capture_retarget(
+    clip: Path = typer.Argument(..., metavar="CLIP", help="A solved clip (.json from `capture solve`)."),
+    rig: Path = typer.Argument(..., metavar="RIG", help="The .mrig rig to play it on."),
+    out: Path = typer.Option(
+        ..., "-o", "--out", help="anim.mp4 / .glb / .usda, or the clip as .json / .csv."
+    ),
+    fps: float = typer.Option(30.0, "--fps", min=1e-3, max=240.0, help="Frames per second of the output."),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Deformation engine."),
+) -> None:
+    """Play a solved clip on another rigged head (channels matched by name, clipped to its ranges).
+
+    Examples:
+
+    \b
+      mimetic capture retarget take1.json other.mrig -o take1-other.mp4
+      mimetic capture retarget take1.json other.mrig --fps 60 -o take1-other.glb
+    """
+    from mimetic.animate.clip import load_clip
+    from mimetic.capture.retarget import retarget
+    from mimetic.rig.format import load_rig
+
+    _output(out, CAPTURE_OUTPUTS)
+    loaded = load_rig(rig)
+    played = retarget(load_clip(clip).sample(fps), loaded)
+    _write_clip(loaded, played, out, engine=engine.value, size=size)
+    stdout.print(f"wrote {out} ({played.n_frames} frames at {fps:g} fps)")
+
+
+def _write_clip(rig, clip, out: Path, *, engine: str, size: int, audio: Path | None = None) -> None:
+    """A clip as out's suffix says: a rendered MP4 (with ``audio``), a clip .json or .csv, or an animated
+    GLB / USD scene."""
+    from mimetic.animate.clip import from_clip, save_clip, save_csv
+
+    suffix = out.suffix.lower()
+    if suffix == ".mp4":
+        from mimetic.view.video import render_clip
+
+        with _progress("video") as progress:
+            render_clip(rig, clip, out, engine=engine, size=size, audio=audio, progress=progress)
+    elif suffix == ".json":
+        save_clip(from_clip(clip), out)
+    elif suffix == ".csv":
+        save_csv(clip, out)
+    else:
+        with _progress("bake") as progress:
+            targets = _muscle_targets(rig, engine, progress)
+        _write_scene(rig, out, targets, clip)
 
 
 def _muscle_targets(rig, engine: str, progress) -> dict:
