@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -223,7 +224,9 @@ def head_motion(
         moved = s[:, None, None] * (np.nan_to_num(stable) @ R.transpose(0, 2, 1)) + t[:, None]
         error = np.linalg.norm(moved - target, axis=2)  # (f, k)
         error[~seen] = np.inf
-        median = np.nanmedian(np.where(keep, error, np.nan), axis=1)  # (f,)
+        with warnings.catch_warnings():  # a frame with no point kept has no median: it gets inf below
+            warnings.simplefilter("ignore", RuntimeWarning)
+            median = np.nanmedian(np.where(keep, error, np.nan), axis=1)  # (f,)
         limit = np.maximum(OUTLIER_FACTOR * np.nan_to_num(median, nan=np.inf), OUTLIER_FLOOR_REL * size)
         new = seen & (error <= limit[:, None])
         if np.array_equal(new, keep):
@@ -248,6 +251,8 @@ def head_motion(
     moved_pivot = (
         ratio[:, None] * np.einsum("fij,fj->fi", rotation, pivot[None] - t) + calibration.translation
     )
-    residual = np.sqrt(np.nanmean(np.where(keep, error, np.nan) ** 2, axis=1))
+    kept = np.where(keep, error, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        residual = np.sqrt((kept**2).sum(axis=1) / keep.sum(axis=1))
     residual[~fitted] = np.nan
     return HeadMotion(rotation, moved_pivot - pivot, to_rig, residual, keep, fitted)

@@ -67,6 +67,9 @@ CAUCHY_SCALE = 3.0
 """Robust weights 1 / (1 + (r / (CAUCHY_SCALE σ))²), σ from the median absolute deviation."""
 OUTLIER_SIGMAS = 6.0
 """Residuals beyond this many σ are reported as outliers and get weight 0."""
+MODEL_OUTLIER_SIGMAS = 12.0
+"""A marker sample this many σ from the solved model is dropped (looser than the smoother's spikes:
+a model residual also holds what the rig cannot express)."""
 ROBUST_ROUNDS = 3
 HEAD_ROUNDS = 4
 """Alternations between the head's motion (refitted to every fixed marker, less the expression the
@@ -167,6 +170,16 @@ def smoothing_weight(fps: float, cutoff_hz: float) -> float:
     """λ of the Whittaker smoother whose response 1 / (1 + λ (2 − 2 cos ω)²) is ½ at ``cutoff_hz``."""
     omega = 2 * np.pi * min(cutoff_hz / fps, 0.5)
     return 1.0 / (2.0 - 2.0 * np.cos(omega)) ** 2
+
+
+def smoothed_noise(noise: float, fps: float, cutoff_hz: float | None) -> float:
+    """The standard deviation white ``noise`` keeps through the smoother: ``noise`` times the RMS of
+    its response 1 / (1 + λ (2 − 2 cos ω)²) over the band (about 0.5 for 8 Hz at 60 fps)."""
+    if cutoff_hz is None:
+        return noise
+    omega = np.linspace(0.0, np.pi, 2049)
+    response = 1.0 / (1.0 + smoothing_weight(fps, cutoff_hz) * (2.0 - 2.0 * np.cos(omega)) ** 2)
+    return float(noise * np.sqrt(np.mean(response**2)))
 
 
 def _second_difference_banded(f: int, lam: float, weights: np.ndarray) -> np.ndarray:
@@ -478,6 +491,8 @@ def solve_performance(
         or wrongly scaled capture, no frame with a head fit.
     """
     step = progress or (lambda stage, done, total: None)
+    if refine and engine is None:
+        raise CaptureError("refine= needs engine= (the Engine the basis was baked from)")
     markers = _marker_set(rig, trajectories, markers)
     trajectories = trajectories.select(markers.names)
     if trajectories.dims == 2:
@@ -562,18 +577,23 @@ def solve_performance(
     x, residual = solver.solve(y, weights)
     # the head again, from every fixed marker, with the expression predicted by the solve taken out
     fixed = usable & ~markers.sliding
-    for _ in range(HEAD_ROUNDS):
-        expected = reference + (x @ deltas[free_index].reshape(len(free_index), 3 * m)).reshape(f, m, 3)
-        head = head_motion(
+    flat_deltas = deltas[free_index].reshape(len(free_index), 3 * m)
+
+    def realign(model: np.ndarray) -> tuple[HeadMotion, np.ndarray]:
+        """The head fitted to the markers less the ``model`` (f, m, 3) expression; the stabilised y."""
+        motion = head_motion(
             np.where(fixed[..., None], points, np.nan),
-            expected,
+            reference + model,
             calibration,
             pivot=rig.bone("head").head,
             size=rig.scale,
             fixed_scale=units != "px",
         )
-        S = head.to_rig
-        y = points @ S[:, :3, :3].transpose(0, 2, 1) + S[:, None, :3, 3] - reference[None]
+        S = motion.to_rig
+        return motion, points @ S[:, :3, :3].transpose(0, 2, 1) + S[:, None, :3, 3] - reference[None]
+
+    for _ in range(HEAD_ROUNDS):
+        head, y = realign((x @ flat_deltas).reshape(f, m, 3))
         x, residual = solver.solve(y, weights)
     if robust:
         for _ in range(2):
@@ -585,16 +605,18 @@ def solve_performance(
                     for j in range(m)
                 ]
             )
-            bad = usable & (residual > OUTLIER_SIGMAS * sigma * 2)
+            bad = usable & (residual > MODEL_OUTLIER_SIGMAS * sigma)
             weights = np.where(usable & ~bad, 1.0 / (1.0 + (residual / (CAUCHY_SCALE * sigma)) ** 2), 0.0)
             x, residual = solver.solve(y, weights)
         outliers |= usable & (weights == 0)
         usable &= weights > 0
     solved = tuple(basis.channels[j] for j in free_index)
-    for k in range(refine):
+    W = markers.weights(rig)
+    for k in range(refine):  # Gauss-Newton against the engine: its markers, not the basis's, at x
         step("refine", k, refine)
-        W = markers.weights(rig)
-        x = _refine(engine, rig, solved, deltas[free_index], W, W @ basis.neutral, solver, y, weights, x)
+        model = _engine_markers(engine, rig, solved, W, W @ basis.neutral, x)
+        head, y = realign(model)
+        x, residual = solver.solve(y - (model - (x @ flat_deltas).reshape(f, m, 3)), weights)
     step("solve", 1, 1)
     values = np.zeros((f, len(rig.channels)))
     name_to_column = {n: j for j, n in enumerate(rig.channel_names)}
@@ -635,26 +657,15 @@ def solve_performance(
     )
 
 
-def _refine(
-    engine,
-    rig: Rig,
-    channels: Sequence[str],
-    deltas: np.ndarray,
-    W,
-    neutral: np.ndarray,
-    solver,
-    y,
-    weights,
-    x,
+def _engine_markers(
+    engine, rig: Rig, channels: Sequence[str], W, neutral: np.ndarray, x: np.ndarray
 ) -> np.ndarray:
-    """One Gauss-Newton step against the full engine: the targets less the engine's departure from
-    the basis (marker ``deltas`` (k, m, 3), ``neutral`` (m, 3)) at the current activations ``x`` (f, k)."""
-    if engine is None:
-        raise CaptureError("refine= needs engine= (the Engine the basis was baked from)")
+    """Marker displacements (f, m, 3) of the full engine posed at activations ``x`` (f, k) of
+    ``channels``, from the markers' rest ``neutral`` (m, 3); ``W`` the markers' (m, n) weights."""
     pose = np.zeros(len(rig.channels))
     index = [rig.channel_index(name) for name in channels]
-    correction = np.empty_like(y)
+    out = np.empty((len(x), *neutral.shape))
     for t in range(len(x)):
         pose[index] = x[t]
-        correction[t] = W @ engine.deform(pose) - neutral - np.einsum("kmi,k->mi", deltas, x[t])
-    return solver.solve(y - correction, weights)[0]
+        out[t] = W @ engine.deform(pose) - neutral
+    return out
