@@ -65,6 +65,9 @@ MAX_GAP_S = 0.25
 """Gaps in a marker longer than this stay missing (the smoother's fill is not trusted)."""
 CAUCHY_SCALE = 3.0
 """Robust weights 1 / (1 + (r / (CAUCHY_SCALE σ))²), σ from the median absolute deviation."""
+SIGMA_FLOOR_REL = 0.002
+"""The robust scale σ is at least this fraction of the head (0.4 mm on a 22 cm head): clean data
+has a median residual near 0, and a smooth motion's onset must not count as a spike."""
 OUTLIER_SIGMAS = 6.0
 """Residuals beyond this many σ are reported as outliers and get weight 0."""
 MODEL_OUTLIER_SIGMAS = 12.0
@@ -225,7 +228,8 @@ def smooth_markers(
     robust : bool
         Reweight by the smoothing residual and drop spikes beyond ``OUTLIER_SIGMAS``.
     size : float
-        The head's size, for a floor on the robust scale (1e-4 of it).
+        The head's size in the markers' units, for the floor of the robust scale
+        (``SIGMA_FLOOR_REL`` of it).
 
     Returns
     -------
@@ -251,7 +255,7 @@ def smooth_markers(
             if not robust:
                 break
             residual = np.linalg.norm(filled[:, j] - fit, axis=1)
-            sigma = max(1.4826 * np.median(residual[seen[:, j]]), 1e-4 * size)
+            sigma = max(1.4826 * np.median(residual[seen[:, j]]), SIGMA_FLOOR_REL * size)
             spike = seen[:, j] & (residual > OUTLIER_SIGMAS * sigma)
             new = np.where(seen[:, j] & ~spike, 1.0 / (1.0 + (residual / (CAUCHY_SCALE * sigma)) ** 2), 0.0)
             if np.array_equal(spike, outliers[:, j]) and np.allclose(new, weights, atol=1e-3):
@@ -599,7 +603,7 @@ def solve_performance(
         for _ in range(2):
             sigma = np.array(
                 [
-                    max(1.4826 * np.median(residual[usable[:, j], j]), 1e-3 * rig.scale)
+                    max(1.4826 * np.median(residual[usable[:, j], j]), SIGMA_FLOOR_REL * rig.scale)
                     if usable[:, j].any()
                     else 1.0
                     for j in range(m)
