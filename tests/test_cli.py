@@ -101,6 +101,10 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         "jaw_drop_tissue.mp4",
         "talk.mp4",
         "talk.clip.json",
+        "capture.trc",
+        "capture.clip.json",
+        "capture_retargeted.mp4",
+        "capture_retargeted.glb",
     ):
         assert (out / name).stat().st_size > 1000, name
     assert len(list((out / "rigs").glob("seed_*.mrig"))) == 8

@@ -18,7 +18,11 @@ It also animates the default head: an expression sequence as a keyframed clip
 skeleton (``animation.glb``), the same clip rendered to ``animation.mp4``, the ARKit-52
 blendshapes baked from the muscle rig as a GLB (``head_arkit.glb``), and a talking head: a sentence
 lip-synced with coarticulation, blinks and saccades (``talk.clip.json``), rendered with its sound
-(``talk.mp4``, spoken by espeak-ng into ``talk.wav`` when that program is installed).
+(``talk.mp4``, spoken by espeak-ng into ``talk.wav`` when that program is installed). Finally a
+performance capture: the default head plays the expression sequence with a turning head while its
+iBUG-68 markers are recorded in millimetres with 1 mm of noise (``capture.trc``); they are solved
+back into channels (``capture.clip.json``) and played on the first random head
+(``capture_retargeted.mp4``, ``capture_retargeted.glb``).
 
 Real scanned heads (ICT-FaceKit, from the shared test data) are rigged by ``examples/real_heads.py``,
 which ``make demo`` runs after this job; the library itself knows no particular head.
@@ -85,6 +89,7 @@ def run_demo(
             progress(next(steps), total)
 
     default_rig: Rig | None = None
+    other_rig: Rig | None = None
     for seed in jobs:
         params = HeadParams() if seed is None else HeadParams.random(seed)
         head = make_head(params, resolution)
@@ -103,6 +108,7 @@ def run_demo(
             files.append(save_mesh(head.mesh, out / "heads" / f"seed_{seed}.glb"))
             files.append(save_rig(rig, out / "rigs" / f"seed_{seed}.mrig"))
             label = f"seed {seed}"
+            other_rig = other_rig or rig
         tiles.append((f"{label}: front", render_rig(rig, "front", size=size, renderer=renderer)))
         tiles.append(
             (f"{label}: three-quarter", render_rig(rig, "three_quarter", size=size, renderer=renderer))
@@ -113,22 +119,23 @@ def run_demo(
     engines = {name: make_engine(default_rig, name) for name in ENGINES}
     files += _action_sheets(default_rig, engines, out, renderer, tick)
     files += _expressions(default_rig, engines["wire"], out / "expressions", size, renderer, tick)
-    animated, notes = _animation(default_rig, engines["wire"], out, renderer, tick)
+    animated, notes = _animation(default_rig, other_rig or default_rig, engines["wire"], out, renderer, tick)
     return DemoResult(out, tuple(files + animated), tuple(notes))
 
 
 ANIMATION = ((0.0, "rest"), (1.0, "joy"), (2.0, "surprise"), (3.0, "anger"), (4.0, "sadness"), (5.0, "rest"))
 ANIMATION_FPS = 30
-ANIMATION_STEPS = ("bake", "clip and GLB", "MP4", "ARKit-52 GLB", "talking head")
+ANIMATION_STEPS = ("bake", "clip and GLB", "MP4", "ARKit-52 GLB", "talking head", "capture")
 TALK = (
     "Hello! I am a mimetic head. My muscles move my face when I speak, so the lips meet at every b, p and m."
 )
 
 
 def _animation(
-    rig: Rig, engine: Engine, out: Path, renderer: Renderer, tick: Callable[[], None]
+    rig: Rig, other: Rig, engine: Engine, out: Path, renderer: Renderer, tick: Callable[[], None]
 ) -> tuple[list[Path], list[str]]:
-    """An expression sequence as a clip, an animated GLB, an MP4; the ARKit-52 GLB; a talking head."""
+    """An expression sequence as a clip, an animated GLB, an MP4; the ARKit-52 GLB; a talking head; the
+    sequence captured from ``rig`` and played on ``other``."""
     from mimetic.animate.clip import from_expressions, save_clip
     from mimetic.engines.bake import bake
     from mimetic.export.arkit import arkit_shapes
@@ -149,7 +156,44 @@ def _animation(
     tick()
     talk, notes = _talk(rig, basis, out, renderer)
     tick()
-    return files + talk, notes
+    captured = _capture(rig, other, basis, clip, out, renderer)
+    tick()
+    return files + talk + captured, notes
+
+
+CAPTURE_NOISE_MM = 1.0
+
+
+def _capture(rig: Rig, other: Rig, basis, clip, out: Path, renderer: Renderer) -> list[Path]:
+    """A performance capture: ``rig`` plays ``clip`` with a turning head while a mocap system records
+    its iBUG-68 markers in millimetres, 1 mm of noise (``capture.trc``); the markers are solved back
+    into channels (``capture.clip.json``) and played on ``other`` (``capture_retargeted.mp4`` and
+    ``.glb``)."""
+    from mimetic.animate.clip import from_clip, save_clip
+    from mimetic.capture import Trajectories, marker_set, retarget, solve_performance, write_trajectories
+    from mimetic.engines.basis import evaluate_basis
+    from mimetic.engines.skinning import rotation_y
+    from mimetic.export.gltf import export_glb, morph_targets
+    from mimetic.view.video import render_clip
+
+    markers = marker_set(rig, "ibug68")
+    points = markers.positions(rig, evaluate_basis(basis, clip.values))  # (f, 68, 3), rig units
+    pivot = rig.bone("head").head
+    turn = 0.25 * np.sin(np.linspace(0.0, 2 * np.pi, clip.n_frames))
+    for t, angle in enumerate(turn):
+        points[t] = (points[t] - pivot) @ rotation_y(angle).T + pivot
+    millimetres = points * (10.0 if rig.units == "cm" else 1.0)
+    noise = np.random.default_rng(0).normal(scale=CAPTURE_NOISE_MM / np.sqrt(3), size=points.shape)
+    take = Trajectories(markers.names, millimetres + noise, clip.fps, "mm", source="capture.trc")
+    files = [write_trajectories(take, out / "capture.trc")]
+    performance = solve_performance(rig, take, basis=basis, markers=markers, regularization=0.05)
+    files.append(save_clip(from_clip(performance.clip), out / "capture.clip.json"))
+    played = retarget(performance.clip, other)
+    files.append(render_clip(other, played, out / "capture_retargeted.mp4", size=512, renderer=renderer))
+    files.append(
+        export_glb(other, out / "capture_retargeted.glb", morph_targets=morph_targets(other), clip=played)
+    )
+    return files
 
 
 def _talk(rig: Rig, basis, out: Path, renderer: Renderer) -> tuple[list[Path], list[str]]:
