@@ -880,7 +880,7 @@ def _solve_capture(
 ):
     """Bake the rig, pick the channels, solve; progress bars per stage."""
     from mimetic.capture.markers import layout_for, marker_set
-    from mimetic.capture.performance import determined_channels, solve_performance
+    from mimetic.capture.performance import determined_channels, smoothed_noise, solve_performance
     from mimetic.engines import make_engine
     from mimetic.engines.bake import bake
     from mimetic.mesh.units import UNIT_SCALE
@@ -896,6 +896,7 @@ def _solve_capture(
     if channels == "determined":
         metre = UNIT_SCALE.get(loaded.units or "", None)
         noise = 0.001 / metre / 3**0.5 if metre else 0.005 * loaded.scale  # 1 mm, per coordinate
+        noise = smoothed_noise(noise, trajectories.fps, cutoff or None)
         active = determined_channels(loaded, basis, placed, noise=noise)
     with _step_progress() as progress:
         return solve_performance(
