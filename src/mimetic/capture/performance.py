@@ -82,6 +82,8 @@ MIN_MOVE_REL = 1e-3
 """Channels moving the markers less than this fraction of the strongest channel are held at 0."""
 MIN_SEEN_FRACTION = 0.5
 """Frames that see fewer than this fraction of the markers are flagged."""
+MIN_CONFIDENCE = 0.5
+"""Frames whose tracking confidence is below this are flagged (FaceDetection's own threshold)."""
 STABLE_MOTION_REL = 0.005
 """A stable (head-motion) marker must move less than this fraction of the head's size under any
 channel at its extreme; the layout's candidates that move more are not used for the head fit."""
@@ -358,13 +360,20 @@ def noise_gain(solver: MarkerSolver) -> np.ndarray:
     return np.sqrt(np.maximum(np.diag(inverse @ undamped @ inverse), 0.0))[:k]
 
 
+def marker_deltas(rig: Rig, basis: Basis, markers: MarkerSet) -> np.ndarray:
+    """(c, m, 3) float64: each channel's displacement of each marker (barycentric on the basis's deltas)."""
+    c, n, _ = basis.deltas.shape
+    flat = markers.weights(rig) @ basis.deltas.transpose(1, 0, 2).reshape(n, 3 * c)  # (m, 3c)
+    return flat.reshape(-1, c, 3).transpose(1, 0, 2)
+
+
 def determined_channels(
     rig: Rig, basis: Basis, markers: MarkerSet, *, noise: float, tolerance: float = 0.02
 ) -> tuple[str, ...]:
     """The channels a marker set determines: starting from every channel the markers see, drop the
     one with the largest ``noise_gain`` · ``noise`` / range until each is within ``tolerance`` of
     its range (``noise``: per-coordinate marker noise in rig units, after smoothing)."""
-    deltas = np.einsum("mn,cnd->cmd", markers.weights(rig).toarray(), basis.deltas)
+    deltas = marker_deltas(rig, basis, markers)
     effect = np.sqrt(np.einsum("cmd,cmd->c", deltas, deltas))
     keep = list(np.flatnonzero(effect > MIN_MOVE_REL * effect.max()))
     by_name = {ch.name: ch for ch in rig.channels}
@@ -536,7 +545,7 @@ def solve_performance(
         points, outliers = smooth_markers(points, trajectories.fps, cutoff_hz, robust=robust, size=size)
         step("smooth", 1, 1)
     reference = _neutral_reference(points, rig_points, calibration, neutral_frame)
-    deltas = np.einsum("mn,cnd->cmd", markers.weights(rig).toarray(), basis.deltas)  # (c, m, 3)
+    deltas = marker_deltas(rig, basis, markers)  # (c, m, 3)
     stable = stable_markers(rig, basis, deltas, markers)
     head = head_motion(
         points[:, stable],
@@ -627,7 +636,11 @@ def solve_performance(
     for i, j in enumerate(free_index):
         values[:, name_to_column[basis.channels[j]]] = x[:, i]
     angles = head.angles()
-    flagged = ~head.fitted | (usable.sum(axis=1) < MIN_SEEN_FRACTION * m) | (trajectories.confidence < 0.5)
+    flagged = (
+        ~head.fitted
+        | (usable.sum(axis=1) < MIN_SEEN_FRACTION * m)
+        | (trajectories.confidence < MIN_CONFIDENCE)
+    )
     for k, name in enumerate(HEAD_CHANNELS):
         if name in name_to_column:
             ch = by_name[name]
