@@ -865,7 +865,8 @@ CaptureUnits = Enum("CaptureUnits", {u: u for u in ("mm", "cm", "m", "px")}, typ
 
 
 def _capture_options(channels: str, rig) -> tuple[str, ...] | None:
-    """--channels: "all" (None: every channel the markers see), "determined" (resolved later) or names."""
+    """--channels: "all" (None: every channel the markers see but the gaze), "determined" (resolved
+    later) or names."""
     if channels in ("all", "determined"):
         return None
     names = tuple(n.strip() for n in channels.split(",") if n.strip())
@@ -931,8 +932,8 @@ def _capture_outputs(loaded, performance, out: Path, report: Path | None, engine
 
 _MARKERS_HELP = "Marker layout: paper, ibug68, mediapipe or a marker .json (default: from the point names)."
 _CHANNELS_HELP = (
-    "Channels to solve: all (every channel the markers see), determined (those the markers pin down at 1 mm "
-    "noise) or a comma-separated list."
+    "Channels to solve: all (every channel the markers see but the gaze), determined (those the markers "
+    "pin down at 1 mm noise) or a comma-separated list."
 )
 
 

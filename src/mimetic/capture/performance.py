@@ -4,10 +4,9 @@
 
 1. **Markers**: the captured points are matched by name to a ``MarkerSet`` on the rig (the
    layout is told from the names: ``ibug68_*``, ``mediapipe_*`` or the paper's).
-2. **Calibration and head motion** (``capture.head``): the neutral frame is mapped onto the rig
-   by a similarity; each frame's stable points give the skull's motion, which is removed and
-   kept as the ``head_*`` channels.
-3. **Temporal smoothing** (``smooth_markers``): each stabilised marker coordinate is smoothed as
+2. **Calibration** (``capture.head``): the neutral pose (each marker's median over
+   ``NEUTRAL_WINDOW_S`` around the neutral frame) is mapped onto the rig by a similarity.
+3. **Temporal smoothing** (``smooth_markers``): each captured marker coordinate is smoothed as
    one banded problem over the whole clip, ``(W + λ D₂ᵀD₂) ŷ = W y`` (a Whittaker smoother: W the
    marker's per-frame weight, D₂ the second difference), with λ set so the response is one half
    at ``cutoff_hz``. Missing markers have weight 0, so gaps up to ``MAX_GAP_S`` are filled by
@@ -16,7 +15,11 @@
    inactive bounds this *is* the clip-wide solve with the marker motion's acceleration penalised
    — ‖(I⊗D)a − y‖² + λ‖(D₂⊗D)a‖² has normal equations ((I + λD₂ᵀD₂)⊗DᵀD) a = (I⊗Dᵀ) y, i.e. the
    per-frame solve of the smoothed markers — but it is separable per coordinate, so 10,000
-   frames take a fraction of a second.
+   frames take a fraction of a second. (The head's rigid motion is smooth too, so smoothing before
+   it is taken out changes little.)
+   **Head motion**: each frame's markers that no channel moves give the skull's motion, which is
+   removed and kept as the ``head_*`` channels; it is then refitted, alternating with step 4, to
+   every trusted marker less the expression the solve predicts there.
 4. **Solve** per frame (``capture.qp``), on the marker rows of the baked basis: ::
 
        minimise Σ_j w_tj ‖P_j (D_j a − y_tj)‖² + Σ_i λ_i a_i² + Σ_i σ_i a_i     lo ≤ a ≤ hi
@@ -24,8 +27,9 @@
    P_j drops a sliding marker's motion along its contour, λ_i = ``regularization`` · ‖D_i‖² (as
    in ``solve_activations``), σ_i = ``sparsity`` · ‖D_i‖² on channels bounded below by 0 (an L1
    term: a channel alone is soft-thresholded by ``sparsity`` activation units). With
-   ``robust``, two more passes reweight each marker by a Cauchy function of its fit residual,
-   so a marker the model cannot explain (a mislabelled one) stops pulling the others.
+   ``robust``, each alternation reweights every marker sample by a Cauchy function of its fit
+   residual, with one scale for all markers, so a marker the model cannot explain (a mislabelled
+   one) stops pulling the others.
 5. Optionally (``refine``), Gauss-Newton steps against the full engine rather than its
    linearisation: the engine is posed at the solved activations and the solve repeated on
    targets corrected by the difference between the engine and the basis there.
@@ -59,6 +63,9 @@ log = logging.getLogger(__name__)
 Progress = Callable[[str, int, int], None]
 
 HEAD_CHANNELS = ("head_yaw", "head_pitch", "head_roll")
+GAZE_CHANNELS = ("gaze_yaw", "gaze_pitch", "gaze_convergence")
+"""Left out unless named in ``active``: markers and face landmarks have no iris points, and the rig's
+lids follow the gaze, so a lid marker would explain a blink as the eyes turning down."""
 CUTOFF_HZ = 8.0
 """Default smoothing cutoff: facial motion (speech included) lives below ~8 Hz, tracker jitter above."""
 MAX_GAP_S = 0.25
@@ -74,7 +81,12 @@ MODEL_OUTLIER_SIGMAS = 12.0
 """A marker sample this many σ from the solved model is dropped (looser than the smoother's spikes:
 a model residual also holds what the rig cannot express)."""
 ROBUST_ROUNDS = 3
-HEAD_ROUNDS = 4
+HEAD_ROUNDS = 8
+ROUNDS_TOLERANCE = 1e-5
+"""The alternation stops once no activation moves by more than this between rounds."""
+NEUTRAL_WINDOW_S = 0.2
+"""The neutral pose is each marker's median (smoothed, spikes left out) over this long a window
+around the neutral frame."""
 """Alternations between the head's motion (refitted to every fixed marker, less the expression the
 solve predicts there) and the expression (solved on the markers that head motion stabilises): the
 stable markers alone are few and close together, so their pose is noisy."""
@@ -145,10 +157,11 @@ class Performance:
         head rotation range, and the most active channels."""
         error = self.marker_error[np.isfinite(self.marker_error)]
         values = self.clip.values
-        peaks = {
-            n: float(np.abs(values[:, j]).max()) for j, n in enumerate(self.clip.channels) if n in self.solved
-        }
-        top = sorted(peaks, key=peaks.get, reverse=True)[:8]
+        peaks = {}  # each solved channel's signed value farthest from 0
+        for j, name in enumerate(self.clip.channels):
+            if name in self.solved:
+                peaks[name] = float(values[np.argmax(np.abs(values[:, j])), j])
+        top = sorted(peaks, key=lambda n: abs(peaks[n]), reverse=True)[:8]
         angles = self.head.angles()
         return {
             "frames": self.clip.n_frames,
@@ -370,12 +383,14 @@ def marker_deltas(rig: Rig, basis: Basis, markers: MarkerSet) -> np.ndarray:
 def determined_channels(
     rig: Rig, basis: Basis, markers: MarkerSet, *, noise: float, tolerance: float = 0.02
 ) -> tuple[str, ...]:
-    """The channels a marker set determines: starting from every channel the markers see, drop the
+    """The channels a marker set determines: starting from every channel the markers see (but the
+    gaze, ``GAZE_CHANNELS``), drop the
     one with the largest ``noise_gain`` · ``noise`` / range until each is within ``tolerance`` of
     its range (``noise``: per-coordinate marker noise in rig units, after smoothing)."""
     deltas = marker_deltas(rig, basis, markers)
     effect = np.sqrt(np.einsum("cmd,cmd->c", deltas, deltas))
-    keep = list(np.flatnonzero(effect > MIN_MOVE_REL * effect.max()))
+    seen = (effect > MIN_MOVE_REL * effect.max()) & ~np.isin(basis.channels, GAZE_CHANNELS)
+    keep = list(np.flatnonzero(seen))
     by_name = {ch.name: ch for ch in rig.channels}
     span = np.array([by_name[n].maximum - by_name[n].minimum for n in basis.channels])
     zeros = np.zeros(len(basis.channels))
@@ -443,16 +458,33 @@ def stable_markers(rig: Rig, basis: Basis, deltas: np.ndarray, markers: MarkerSe
     return motion <= np.sort(motion)[min(len(motion), 2 * MIN_STABLE_MARKERS) - 1]
 
 
-def _neutral_reference(
-    points: np.ndarray, rig_points: np.ndarray, calibration: Similarity, neutral_frame: int
-) -> np.ndarray:
-    """The markers' neutral positions in the rig's frame: the calibrated neutral frame where seen,
+def _neutral_points(points: np.ndarray, outliers: np.ndarray, neutral_frame: int, fps: float) -> np.ndarray:
+    """(m, 3): each marker's median over ``NEUTRAL_WINDOW_S`` around the neutral frame, spikes left out
+    (NaN for a marker not seen there). A single frame would carry its noise, or a spike the smoother's
+    ends let through, into every frame's displacement."""
+    half = max(1, round(NEUTRAL_WINDOW_S * fps / 2))
+    window = slice(max(0, neutral_frame - half), neutral_frame + half + 1)
+    sample = np.where(outliers[window][..., None], np.nan, points[window])
+    with warnings.catch_warnings():  # a marker unseen in the whole window: NaN, handled by the caller
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(sample, axis=0)
+
+
+def _neutral_reference(neutral: np.ndarray, rig_points: np.ndarray, calibration: Similarity) -> np.ndarray:
+    """The markers' neutral positions in the rig's frame: the calibrated ``neutral`` (m, 3) where seen,
     else the rig's virtual marker."""
-    neutral = points[neutral_frame]
     seen = np.isfinite(neutral).all(axis=1)
     reference = rig_points.copy()
     reference[seen] = calibration.apply(neutral[seen])
     return reference
+
+
+def _robust_weights(residual: np.ndarray, usable: np.ndarray, floor: float) -> np.ndarray:
+    """Cauchy weights (f, m) of the model residuals with one scale for all markers (a marker that is
+    wrong in every frame must not set its own scale), 0 beyond ``MODEL_OUTLIER_SIGMAS``."""
+    sigma = max(1.4826 * float(np.median(residual[usable])), floor) if usable.any() else floor
+    keep = usable & (residual <= MODEL_OUTLIER_SIGMAS * sigma)
+    return np.where(keep, 1.0 / (1.0 + (residual / (CAUCHY_SCALE * sigma)) ** 2), 0.0)
 
 
 def solve_performance(
@@ -486,7 +518,7 @@ def solve_performance(
     neutral_frame : int
         A frame with a neutral expression (the paper's first frame), for the calibration.
     active : sequence of str, optional
-        Channels to solve for (default: every channel the markers see).
+        Channels to solve for (default: every channel the markers see but the gaze).
     cutoff_hz : float or None
         Temporal smoothing cutoff (``smooth_markers``); None solves each frame on its own.
     regularization, sparsity : float
@@ -523,7 +555,8 @@ def solve_performance(
             stacklevel=2,
         )
     rig_points = markers.positions(rig)
-    at_neutral = seen[neutral_frame]
+    neutral = _neutral_points(points, np.zeros((f, m), bool), neutral_frame, trajectories.fps)
+    at_neutral = np.isfinite(neutral).all(axis=1)
     if at_neutral.sum() < max(4, m // 2):
         raise CaptureError(
             f"{trajectories.source}: the neutral frame {neutral_frame} shows {at_neutral.sum()} of {m} "
@@ -533,7 +566,7 @@ def solve_performance(
     step("calibrate", 0, 1)
     calibration, units = calibrate(
         rig_points[at_neutral],
-        points[neutral_frame, at_neutral],
+        neutral[at_neutral],
         units=trajectories.units,
         rig_units=rig.units,
         source=trajectories.source,
@@ -544,7 +577,9 @@ def solve_performance(
         size = rig.scale / calibration.scale  # the head's size in capture units
         points, outliers = smooth_markers(points, trajectories.fps, cutoff_hz, robust=robust, size=size)
         step("smooth", 1, 1)
-    reference = _neutral_reference(points, rig_points, calibration, neutral_frame)
+    reference = _neutral_reference(
+        _neutral_points(points, outliers, neutral_frame, trajectories.fps), rig_points, calibration
+    )
     deltas = marker_deltas(rig, basis, markers)  # (c, m, 3)
     stable = stable_markers(rig, basis, deltas, markers)
     head = head_motion(
@@ -569,6 +604,8 @@ def solve_performance(
         if unknown:
             raise CaptureError(f"active names unknown channel(s) {', '.join(unknown[:5])}")
         free &= np.isin(basis.channels, list(active))
+    else:
+        free &= ~np.isin(basis.channels, GAZE_CHANNELS)
     free_index = np.flatnonzero(free)
     rows_needed = len(free_index)
     typical = int(np.median(usable.sum(axis=1))) if f else 0
@@ -588,12 +625,15 @@ def solve_performance(
     weights = usable.astype(np.float64)
     step("solve", 0, 1)
     x, residual = solver.solve(y, weights)
-    # the head again, from every fixed marker, with the expression predicted by the solve taken out
-    fixed = usable & ~markers.sliding
+    # the head again, from every fixed marker, with the expression predicted by the solve taken out;
+    # robust weights from the solve's residuals
     flat_deltas = deltas[free_index].reshape(len(free_index), 3 * m)
+    floor = SIGMA_FLOOR_REL * rig.scale
 
     def realign(model: np.ndarray) -> tuple[HeadMotion, np.ndarray]:
-        """The head fitted to the markers less the ``model`` (f, m, 3) expression; the stabilised y."""
+        """The head fitted to the trusted fixed markers less the ``model`` (f, m, 3) expression; the
+        stabilised displacements y."""
+        fixed = (weights > 0.5) & ~markers.sliding
         motion = head_motion(
             np.where(fixed[..., None], points, np.nan),
             reference + model,
@@ -606,23 +646,15 @@ def solve_performance(
         return motion, points @ S[:, :3, :3].transpose(0, 2, 1) + S[:, None, :3, 3] - reference[None]
 
     for _ in range(HEAD_ROUNDS):
+        if robust:
+            weights = _robust_weights(residual, usable, floor)
         head, y = realign((x @ flat_deltas).reshape(f, m, 3))
+        previous = x
         x, residual = solver.solve(y, weights)
-    if robust:
-        for _ in range(2):
-            sigma = np.array(
-                [
-                    max(1.4826 * np.median(residual[usable[:, j], j]), SIGMA_FLOOR_REL * rig.scale)
-                    if usable[:, j].any()
-                    else 1.0
-                    for j in range(m)
-                ]
-            )
-            bad = usable & (residual > MODEL_OUTLIER_SIGMAS * sigma)
-            weights = np.where(usable & ~bad, 1.0 / (1.0 + (residual / (CAUCHY_SCALE * sigma)) ** 2), 0.0)
-            x, residual = solver.solve(y, weights)
-        outliers |= usable & (weights == 0)
-        usable &= weights > 0
+        if np.abs(x - previous).max(initial=0.0) < ROUNDS_TOLERANCE:
+            break
+    outliers |= usable & (weights == 0)
+    usable &= weights > 0
     solved = tuple(basis.channels[j] for j in free_index)
     W = markers.weights(rig)
     for k in range(refine):  # Gauss-Newton against the engine: its markers, not the basis's, at x
