@@ -11,7 +11,7 @@
    marker's per-frame weight, D₂ the second difference), with λ set so the response is one half
    at ``cutoff_hz``. Missing markers have weight 0, so gaps up to ``MAX_GAP_S`` are filled by
    the smoother; spikes are found by a robust reweighting (Cauchy weights on the smoothing
-   residual, scale from its median absolute deviation) and left out. For a linear basis D and
+   residual, its scale from the residuals' median) and left out. For a linear basis D and
    inactive bounds this *is* the clip-wide solve with the marker motion's acceleration penalised
    — ‖(I⊗D)a − y‖² + λ‖(D₂⊗D)a‖² has normal equations ((I + λD₂ᵀD₂)⊗DᵀD) a = (I⊗Dᵀ) y, i.e. the
    per-frame solve of the smoothed markers — but it is separable per coordinate, so 10,000
@@ -71,7 +71,10 @@ CUTOFF_HZ = 8.0
 MAX_GAP_S = 0.25
 """Gaps in a marker longer than this stay missing (the smoother's fill is not trusted)."""
 CAUCHY_SCALE = 3.0
-"""Robust weights 1 / (1 + (r / (CAUCHY_SCALE σ))²), σ from the median absolute deviation."""
+"""Robust weights 1 / (1 + (r / (CAUCHY_SCALE σ))²), σ from the residuals' median (``NORM_MEDIAN``)."""
+NORM_MEDIAN = 1.5382
+"""The median of |e| for e a 3-vector of unit normal noise (the χ distribution with 3 degrees of
+freedom): σ per coordinate is the median residual distance over this."""
 SIGMA_FLOOR_REL = 0.002
 """The robust scale σ is at least this fraction of the head (0.4 mm on a 22 cm head): clean data
 has a median residual near 0, and a smooth motion's onset must not count as a spike."""
@@ -82,8 +85,9 @@ MODEL_OUTLIER_SIGMAS = 12.0
 a model residual also holds what the rig cannot express)."""
 ROBUST_ROUNDS = 3
 HEAD_ROUNDS = 8
-ROUNDS_TOLERANCE = 1e-5
-"""The alternation stops once no activation moves by more than this between rounds."""
+ROUNDS_TOLERANCE = 1e-3
+"""The alternation stops once no activation moves by more than this between rounds (activation units
+or radians: far below what a capture's noise allows)."""
 NEUTRAL_WINDOW_S = 0.2
 """The neutral pose is each marker's median (smoothed, spikes left out) over this long a window
 around the neutral frame."""
@@ -270,7 +274,7 @@ def smooth_markers(
             if not robust:
                 break
             residual = np.linalg.norm(filled[:, j] - fit, axis=1)
-            sigma = max(1.4826 * np.median(residual[seen[:, j]]), SIGMA_FLOOR_REL * size)
+            sigma = max(np.median(residual[seen[:, j]]) / NORM_MEDIAN, SIGMA_FLOOR_REL * size)
             spike = seen[:, j] & (residual > OUTLIER_SIGMAS * sigma)
             new = np.where(seen[:, j] & ~spike, 1.0 / (1.0 + (residual / (CAUCHY_SCALE * sigma)) ** 2), 0.0)
             if np.array_equal(spike, outliers[:, j]) and np.allclose(new, weights, atol=1e-3):
@@ -482,7 +486,7 @@ def _neutral_reference(neutral: np.ndarray, rig_points: np.ndarray, calibration:
 def _robust_weights(residual: np.ndarray, usable: np.ndarray, floor: float) -> np.ndarray:
     """Cauchy weights (f, m) of the model residuals with one scale for all markers (a marker that is
     wrong in every frame must not set its own scale), 0 beyond ``MODEL_OUTLIER_SIGMAS``."""
-    sigma = max(1.4826 * float(np.median(residual[usable])), floor) if usable.any() else floor
+    sigma = max(float(np.median(residual[usable])) / NORM_MEDIAN, floor) if usable.any() else floor
     keep = usable & (residual <= MODEL_OUTLIER_SIGMAS * sigma)
     return np.where(keep, 1.0 / (1.0 + (residual / (CAUCHY_SCALE * sigma)) ** 2), 0.0)
 
@@ -571,6 +575,7 @@ def solve_performance(
         rig_units=rig.units,
         source=trajectories.source,
     )
+    step("calibrate", 1, 1)
     outliers = np.zeros((f, m), bool)
     if cutoff_hz is not None:
         step("smooth", 0, 1)
@@ -590,7 +595,6 @@ def solve_performance(
         size=rig.scale,
         fixed_scale=units != "px",
     )
-    step("calibrate", 1, 1)
     # stabilised displacements in the rig's frame
     S = head.to_rig
     moved = points @ S[:, :3, :3].transpose(0, 2, 1) + S[:, None, :3, 3]
@@ -623,7 +627,6 @@ def solve_performance(
         deltas[free_index], markers, lower, upper, regularization=regularization, sparsity=sparsity
     )
     weights = usable.astype(np.float64)
-    step("solve", 0, 1)
     x, residual = solver.solve(y, weights)
     # the head again, from every fixed marker, with the expression predicted by the solve taken out;
     # robust weights from the solve's residuals
@@ -645,7 +648,8 @@ def solve_performance(
         S = motion.to_rig
         return motion, points @ S[:, :3, :3].transpose(0, 2, 1) + S[:, None, :3, 3] - reference[None]
 
-    for _ in range(HEAD_ROUNDS):
+    for round_ in range(HEAD_ROUNDS):
+        step("solve", round_, HEAD_ROUNDS)
         if robust:
             weights = _robust_weights(residual, usable, floor)
         head, y = realign((x @ flat_deltas).reshape(f, m, 3))
@@ -662,7 +666,7 @@ def solve_performance(
         model = _engine_markers(engine, rig, solved, W, W @ basis.neutral, x)
         head, y = realign(model)
         x, residual = solver.solve(y - (model - (x @ flat_deltas).reshape(f, m, 3)), weights)
-    step("solve", 1, 1)
+    step("solve", HEAD_ROUNDS, HEAD_ROUNDS)
     values = np.zeros((f, len(rig.channels)))
     name_to_column = {n: j for j, n in enumerate(rig.channel_names)}
     for i, j in enumerate(free_index):

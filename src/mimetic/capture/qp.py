@@ -193,7 +193,7 @@ def box_qp_frames(
         Bounds (±inf allowed), lower < upper.
     start : (f, c) float64, optional
         Where each run of frames starts (the first frame of each ``CHUNK``); the unconstrained
-        solution clipped into the box by default.
+        solution clipped into the box by default (0 for a frame after one the kernel gave up on).
 
     Returns
     -------
@@ -205,11 +205,13 @@ def box_qp_frames(
     g = np.ascontiguousarray(g, dtype=np.float64)
     H = np.ascontiguousarray(H, dtype=np.float64)
     H3 = H[None] if H.ndim == 2 else H
-    if start is None:
+    if start is None:  # the kernel reads it at each run's first frame (and after a frame it gave up on)
+        first = np.arange(0, len(g), CHUNK)
+        start = np.zeros_like(g)
         if H.ndim == 2:
-            start = np.linalg.solve(H, g.T).T
+            start[first] = np.linalg.solve(H, g[first].T).T
         else:
-            start = np.linalg.solve(H, g[..., None])[..., 0]
+            start[first] = np.linalg.solve(H[first], g[first][..., None])[..., 0]
     start = np.clip(np.ascontiguousarray(start, dtype=np.float64), lower, upper)
     out = np.empty_like(g)
     solved = np.empty(len(g), np.bool_)
