@@ -95,3 +95,22 @@ def test_video_that_is_not_a_video_fails_clearly(files, tmp_path):
     result = run_cli("capture", "video", rig_file, fake, "-o", tmp_path / "face.json")
     assert result.exit_code == 1
     assert "face.mp4" in result.output and "Traceback" not in result.output
+
+
+def test_edits_survive_a_new_solve_from_the_command_line(files, tmp_path):
+    rig_file, trc, _, _, _ = files
+    solved, edited, again = tmp_path / "take.json", tmp_path / "edited.json", tmp_path / "again.json"
+    assert run_cli("capture", "solve", rig_file, trc, "--channels", "jaw_open", "-o", solved).exit_code == 0
+    result = run_cli("clip", "edit", solved, "--key", "jaw_open@1.0=0.35", "-o", edited)
+    assert result.exit_code == 0, result.output
+    result = run_cli(
+        "capture", "solve", rig_file, trc, "--channels", "jaw_open", "--refine", "1", "--edits", edited,
+        "-o", again,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    clip, before = load_clip(again), load_clip(edited)
+    assert [layer.name for layer in clip.layers] == ["base", "edit"]
+    assert clip.layer("edit") == before.layer("edit")  # the edit is kept as it was made
+    j = clip.channels.index("jaw_open")
+    # the refined solve moves the base a little; the edit's displacement rides on top of it
+    assert clip.evaluate(np.array([1.0]))[0, j] == pytest.approx(0.35, abs=0.01)

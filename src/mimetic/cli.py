@@ -877,17 +877,19 @@ def _capture_options(channels: str, rig) -> tuple[str, ...] | None:
 
 
 def _solve_capture(
-    loaded, trajectories, *, markers, engine, neutral_frame, channels, cutoff, robust, sparsity
+    loaded, trajectories, *, markers, engine, neutral_frame, channels, cutoff, robust, sparsity, refine=0
 ):
-    """Bake the rig, pick the channels, solve; progress bars per stage."""
+    """Bake the rig, pick the channels, solve (``refine`` Gauss-Newton steps against the engine);
+    progress bars per stage."""
     from mimetic.capture.markers import layout_for, marker_set
     from mimetic.capture.performance import determined_channels, smoothed_noise, solve_performance
     from mimetic.engines import make_engine
     from mimetic.engines.bake import bake
     from mimetic.mesh.units import UNIT_SCALE
 
+    deformer = make_engine(loaded, engine)
     with _progress("bake") as progress:
-        basis = bake(make_engine(loaded, engine), correctives=0, samples=2, progress=progress).basis
+        basis = bake(deformer, correctives=0, samples=2, progress=progress).basis
     layout = markers or layout_for(trajectories.names)
     with _progress("markers") as progress:
         progress(0, 1)
@@ -910,14 +912,30 @@ def _solve_capture(
             cutoff_hz=cutoff or None,
             robust=robust,
             sparsity=sparsity,
+            refine=refine,
+            engine=deformer,
             progress=progress,
         )
 
 
-def _capture_outputs(loaded, performance, out: Path, report: Path | None, engine: str, size: int) -> None:
+def _capture_outputs(
+    loaded, performance, out: Path, report: Path | None, engine: str, size: int, edits: Path | None = None
+) -> None:
+    """The solved clip (under the edit layers of ``edits``, a clip JSON, when given) and its report."""
     from mimetic.atomic import atomic_write
 
-    _write_clip(loaded, performance.clip, out, engine=engine, size=size)
+    if edits is None:
+        _write_clip(loaded, performance.clip, out, engine=engine, size=size)
+    else:
+        from mimetic.animate.clip import load_clip, save_clip
+        from mimetic.capture.retarget import keep_edits
+
+        edited = keep_edits(load_clip(edits), performance.clip)
+        if out.suffix.lower() == ".json":
+            save_clip(edited, out)
+        else:
+            clip = edited.sample(performance.clip.fps, channels=loaded)
+            _write_clip(loaded, clip, out, engine=engine, size=size)
     summary = performance.report(loaded)
     if report is not None:
         with atomic_write(report, "w") as handle:
@@ -952,6 +970,10 @@ def capture_solve(
     cutoff: float = typer.Option(8.0, "--cutoff", min=0.0, help="Smoothing cutoff in Hz (0: none)."),
     robust: bool = typer.Option(True, "--robust/--no-robust", help="Reject spikes and unexplained markers."),
     sparsity: float = typer.Option(0.0, "--sparsity", min=0.0, help="L1 weight (activation units)."),
+    refine: int = typer.Option(0, "--refine", min=0, max=5, help="Gauss-Newton steps against the engine."),
+    edits: Path | None = typer.Option(
+        None, "--edits", help="An edited clip JSON of an earlier solve: its edit layers go over this solve."
+    ),
     report: Path | None = typer.Option(None, "--report", help="Also write the plausibility report (.json)."),
     size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
     engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Engine to solve against."),
@@ -964,6 +986,8 @@ def capture_solve(
       mimetic capture solve head.mrig take1.c3d -o take1.json
       mimetic capture solve head.mrig openface.csv --fps 30 -o take.mp4 --report take.json
       mimetic capture solve head.mrig take1.trc --markers markers.json --channels determined -o take1.glb
+      mimetic clip edit take1.json --key jaw_open@1.2=0.3 -o take1-edited.json
+      mimetic capture solve head.mrig take1-fixed.c3d --edits take1-edited.json -o take1-edited.json
     """
     from mimetic.capture.formats import read_trajectories
     from mimetic.rig.format import load_rig
@@ -983,8 +1007,9 @@ def capture_solve(
         cutoff=cutoff,
         robust=robust,
         sparsity=sparsity,
+        refine=refine,
     )
-    _capture_outputs(loaded, performance, out, report, engine.value, size)
+    _capture_outputs(loaded, performance, out, report, engine.value, size, edits)
 
 
 @command("video", parent=capture_app)
