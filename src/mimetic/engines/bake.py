@@ -159,3 +159,17 @@ def bake(
         rig.scale,
     )
     return BakeResult(basis, report)
+
+
+def evaluate_rigid(rig, basis: Basis, activations: np.ndarray, *, dtype=np.float64) -> np.ndarray:
+    """Vertex positions (n, 3) of ``basis`` at one pose ``activations`` (c,), with the whole-head
+    rotation (``RIGID``, which the basis cannot hold) applied as the head bone turns it: every bone
+    is a child of the head, so the head's transform moves every vertex rigidly."""
+    from mimetic.engines.skinning import bone_transforms
+
+    vertices = evaluate_basis(basis, activations, dtype=dtype)
+    index = [j for j, name in enumerate(rig.channel_names) if name in RIGID]
+    if not np.any(np.asarray(activations)[index]):
+        return vertices
+    head = bone_transforms(rig, np.asarray(activations, dtype=np.float64))[rig.bone_index("head")]
+    return (vertices @ head[:3, :3].T.astype(dtype) + head[:3, 3].astype(dtype)).astype(dtype)

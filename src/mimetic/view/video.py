@@ -21,7 +21,8 @@ import numpy as np
 
 from mimetic.atomic import atomic_path
 from mimetic.engines import Engine, make_engine
-from mimetic.engines.basis import Basis, evaluate_basis
+from mimetic.engines.bake import evaluate_rigid
+from mimetic.engines.basis import Basis
 from mimetic.errors import MimeticError, MimeticWarning, MissingExtraError
 from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import Clip
@@ -168,8 +169,9 @@ def render_clip(
 ) -> Path:
     """Render ``clip`` on ``rig`` to an MP4 of ``size``² pixels (64..2160) at the clip's fps.
 
-    Each frame's pose comes from ``basis`` when given (``evaluate_basis`` in float32), else from the engine
-    ``engine`` (a name or a prepared engine); an engine that simulates (``tissue``) plays the whole clip
+    Each frame's pose comes from ``basis`` when given (``evaluate_rigid`` in float32: the basis, then
+    the head's rotation), else from the engine ``engine`` (a name or a prepared engine); an engine
+    that simulates (``tissue``) plays the whole clip
     through its dynamics, with inertia and follow-through. The camera frames the rest face
     (``face_camera``), turned by ``yaw_deg``.
     """
@@ -188,7 +190,7 @@ def render_clip(
     def frames():
         for k, pose in enumerate(values):
             if basis is not None:  # float32: far below a pixel, and what the GL renderer draws in
-                vertices = evaluate_basis(basis, pose, dtype=np.float32)
+                vertices = evaluate_rigid(rig, basis, pose, dtype=np.float32)  # the head turns too
             elif simulated is not None:
                 vertices = simulated[k]
             else:
