@@ -231,6 +231,15 @@ def round_robin(cases: dict[str, tuple[Callable[[], object], int]], rounds: int)
     return {name: statistics.median(s) for name, s in samples.items()}
 
 
+def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
+    """An aligned table in ``print_table``'s style: cells separated by " | ", a rule under the header."""
+    widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header))]
+    for k, row in enumerate([header, *rows]):
+        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
+        if k == 0:
+            print("-+-".join("-" * w for w in widths))
+
+
 def print_table(rows: list[tuple[str, float, str, float | None]]) -> None:
     """Rows (case, s per frame, baseline label, baseline s per frame or None) as one aligned table."""
     header = ("case", "median time", "throughput", "baseline", "ratio")

@@ -70,7 +70,7 @@ from scipy.optimize import lsq_linear
 from threadpoolctl import threadpool_limits
 
 import mimetic.capture.performance as performance
-from bench_basis import print_table, round_robin
+from bench_basis import print_table, round_robin, table
 from mimetic.capture.markers import MarkerSet, marker_set
 from mimetic.capture.performance import (
     CUTOFF_HZ,
@@ -302,15 +302,6 @@ def capture_trajectories(
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
-    """An aligned table in ``print_table``'s style: cells separated by " | ", a rule under the header."""
-    widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header))]
-    for k, row in enumerate([header, *rows]):
-        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
-        if k == 0:
-            print("-+-".join("-" * w for w in widths))
 
 
 def projected(solver: MarkerSolver, y: np.ndarray) -> np.ndarray:

@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_basis import print_table, round_robin
+from bench_basis import print_table, round_robin, table
 from mimetic.engines import make_engine
 from mimetic.speech.align import align_audio, read_wav
 from mimetic.speech.coarticulation import coarticulate, linear_clip
@@ -93,15 +93,6 @@ PARAGRAPH = (
     "surrounding acquaintance. The late owner of this estate was a single man."
 )
 """60 words: the opening of *Sense and Sensibility* (1811), the book the LibriVox utterances read."""
-
-
-def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
-    """An aligned table in ``print_table``'s style: cells separated by " | ", a rule under the header."""
-    widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header))]
-    for k, row in enumerate([header, *rows]):
-        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
-        if k == 0:
-            print("-+-".join("-" * w for w in widths))
 
 
 def n_frames(timings: PhoneTimings, fps: float = FPS) -> int:

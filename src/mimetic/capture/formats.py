@@ -65,6 +65,7 @@ import numpy as np
 from mimetic.atomic import atomic_write
 from mimetic.capture.trajectories import LENGTH_UNITS, CaptureError, Trajectories
 from mimetic.errors import MimeticWarning
+from mimetic.mesh.io import read_input
 
 log = logging.getLogger(__name__)
 
@@ -164,16 +165,7 @@ def read_trajectories(
 
 
 def _read_bytes(path: Path, src: str) -> bytes:
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise CaptureError(
-            f"{src}: no such file (looked in {path.absolute().parent}). Check the path."
-        ) from None
-    except IsADirectoryError:
-        raise CaptureError(f"{src}: is a folder, not a trajectory file.") from None
-    except OSError as error:
-        raise CaptureError(f"{src}: cannot read the file ({error.strerror or error}).") from None
+    data = read_input(path, src, CaptureError, "trajectory")
     if not data.strip():
         raise CaptureError(f"{src}: the file is empty. Expected one of: {_KNOWN_FORMATS}.")
     return data

@@ -35,6 +35,7 @@ import numpy as np
 from mimetic.atomic import atomic_write
 from mimetic.errors import LandmarkError
 from mimetic.head.landmarks import IBUG68
+from mimetic.mesh.io import read_input
 from mimetic.mesh.units import UNIT_SCALE, convert_units
 
 log = logging.getLogger(__name__)
@@ -316,16 +317,7 @@ def _parse_csv(text: str, src: str) -> tuple[list[tuple[str, object, int]], str 
 
 
 def _read_text(path: Path, src: str) -> str:
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise LandmarkError(
-            f"{src}: no such file (looked in {path.absolute().parent}). Check the path."
-        ) from None
-    except IsADirectoryError:
-        raise LandmarkError(f"{src}: is a folder, not a landmark file.") from None
-    except OSError as error:
-        raise LandmarkError(f"{src}: cannot read the file ({error.strerror or error}).") from None
+    data = read_input(path, src, LandmarkError, "landmark")
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as error:

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from mimetic.atomic import atomic_write_bytes
-from mimetic.errors import MeshError, MimeticWarning
+from mimetic.errors import MeshError, MimeticError, MimeticWarning
 from mimetic.mesh.model import Material, Mesh
 from mimetic.mesh.units import check_units, detect_units, largest_extent, units_for_extent
 from mimetic.mesh.validate import MIN_FACES
@@ -124,7 +124,7 @@ def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: 
     ext = _extension(path, src)
     if units is not None:
         units = check_units(units)
-    data = _read_bytes(path, src)
+    data = read_input(path, src, MeshError, "mesh")
     reader = {".obj": _read_obj, ".ply": _read_ply, ".stl": _read_stl, ".glb": _read_glb, ".gltf": _read_gltf}
     loaded = reader[ext](data, src, path)
 
@@ -225,21 +225,21 @@ def _extension(path: Path, src: str) -> str:
     return ext
 
 
-def _read_bytes(path: Path, src: str) -> bytes:
+def read_input(path: Path, src: str, error: type[MimeticError], kind: str) -> bytes:
+    """The bytes of input file ``path`` (``src`` names it in messages); ``error`` when it is missing,
+    a folder or unreadable, saying what to do (``kind``: "mesh", "landmark", "trajectory" …)."""
     try:
         return path.read_bytes()
     except FileNotFoundError:
-        raise MeshError(
-            f"{src}: no such file (looked in {path.absolute().parent}). Check the path."
-        ) from None
+        raise error(f"{src}: no such file (looked in {path.absolute().parent}). Check the path.") from None
     except IsADirectoryError:
-        raise MeshError(
-            f"{src}: is a folder, not a mesh file. Give the path of a mesh file inside it."
+        raise error(
+            f"{src}: is a folder, not a {kind} file. Give the path of a {kind} file inside it."
         ) from None
     except PermissionError:
-        raise MeshError(f"{src}: permission denied. Make the file readable.") from None
-    except OSError as error:
-        raise MeshError(f"{src}: cannot read the file ({error.strerror or error}).") from None
+        raise error(f"{src}: permission denied. Make the file readable.") from None
+    except OSError as exc:
+        raise error(f"{src}: cannot read the file ({exc.strerror or exc}).") from None
 
 
 def _check_loaded(vertices: np.ndarray, n_faces: int, src: str) -> None:
