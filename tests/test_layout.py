@@ -2,7 +2,8 @@
 
 * Nothing in the library imports ``mimetic.testing`` (test and benchmark plumbing) or the CLI.
 * Only the CLI and the demo import ``mimetic.view``, ``mimetic.export`` and ``mimetic.demo``
-  (besides those packages themselves).
+  (besides those packages themselves), and ``mimetic.batch``, which runs the commands' jobs on
+  workers, imports ``view`` and ``export``; only the CLI imports ``mimetic.batch``.
 * ``mimetic.render`` (the offscreen renderer) sits below ``fit``: it imports only ``mesh`` and the
   error types, so finding landmarks automatically does not pull in sheets, overlays or video.
 * ``mimetic.animate`` (drivers) does not bake geometry: it never imports ``mimetic.export``.
@@ -64,8 +65,9 @@ def test_layout_sees_the_whole_package():
         ("mimetic.testing", ("mimetic.testing",)),
         ("mimetic.cli", ("mimetic.testing",)),  # testing.run_cli: plumbing above everything
         ("mimetic.demo", ("mimetic.cli", "mimetic.demo")),
-        ("mimetic.view", ("mimetic.view", "mimetic.cli", "mimetic.demo")),
-        ("mimetic.export", ("mimetic.export", "mimetic.cli", "mimetic.demo")),
+        ("mimetic.view", ("mimetic.view", "mimetic.cli", "mimetic.demo", "mimetic.batch")),
+        ("mimetic.export", ("mimetic.export", "mimetic.cli", "mimetic.demo", "mimetic.batch")),
+        ("mimetic.batch", ("mimetic.batch", "mimetic.cli")),
     ],
 )
 def test_nothing_below_imports_the_top_layers(imported, allowed):
@@ -98,7 +100,8 @@ def test_fit_does_not_import_view_and_drivers_do_not_import_export():
 def test_importing_the_library_and_its_cli_loads_no_test_plumbing():
     code = (
         "import sys, mimetic, mimetic.cli, mimetic.fit, mimetic.engines, mimetic.export, mimetic.view, "
-        "mimetic.demo; print(sorted(m for m in sys.modules if m in ('mimetic.testing', 'pytest', 'numba')))"
+        "mimetic.demo, mimetic.batch; "
+        "print(sorted(m for m in sys.modules if m in ('mimetic.testing', 'pytest', 'numba')))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"

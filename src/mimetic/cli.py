@@ -1280,3 +1280,286 @@ def demo(
     stdout.print(table)
     for note in result.notes:
         stdout.print(f"note: {note}")
+
+
+# --------------------------------------------------------------------------- batch
+
+batch_app = typer.Typer(
+    help="Many heads and clips at once, on a local or multi-node Dask cluster (extra [batch]).",
+    no_args_is_help=True,
+    rich_markup_mode=None,
+)
+app.add_typer(batch_app, name="batch")
+BatchClipFormat = Enum("BatchClipFormat", {f: f for f in ("glb", "usda", "usdc", "mp4")}, type=str)
+BatchSpeakFormat = Enum(
+    "BatchSpeakFormat", {f: f for f in ("glb", "usda", "usdc", "mp4", "json", "csv")}, type=str
+)
+BatchCaptureFormat = Enum(
+    "BatchCaptureFormat", {f: f for f in ("json", "csv", "glb", "usda", "mp4")}, type=str
+)
+BatchImageFormat = Enum("BatchImageFormat", {f: f for f in ("png", "jpg", "webp")}, type=str)
+
+_BATCH_OUT = typer.Option(..., "-o", "--out", help="Output folder (created if missing).")
+_BATCH_MANIFEST = typer.Option(
+    None, "--manifest", help="A CSV or JSON file of more items: input, output and options per row."
+)
+_BATCH_WORKERS = typer.Option(
+    None, "--workers", min=1, help="Local worker processes, one thread each (default: one per core)."
+)
+_BATCH_SCHEDULER = typer.Option(
+    None, "--scheduler", help="Run on an existing Dask cluster instead, e.g. tcp://HOST:8786."
+)
+_BATCH_RETRIES = typer.Option(
+    0, "--retries", min=0, help="Run an item that fails unexpectedly up to N more times (not bad input)."
+)
+_BATCH_RESUME = typer.Option(
+    True, "--resume/--no-resume", help="Skip the items an earlier run into OUTDIR finished (default)."
+)
+_BATCH_JSON = typer.Option(False, "--json", help="Print the manifest of results as JSON.")
+
+
+def _batch(kind: str, inputs: list[str] | None, out: Path, manifest: Path | None, workers: int | None,
+           scheduler: str | None, retries: int, resume: bool, as_json: bool, **options) -> None:  # fmt: skip
+    """Run a batch with a progress bar (counts, ETA; failures as they happen), print its summary, exit 1
+    when any item failed."""
+    from mimetic.batch import run_batch
+
+    if workers is not None and scheduler is not None:
+        raise typer.BadParameter("give --workers or --scheduler, not both", param_hint="'--workers'")
+    if not inputs and manifest is None:
+        raise typer.BadParameter("give input files (paths or quoted globs) or --manifest")
+    _output_folder(out)
+    counts = dict.fromkeys(("ok", "failed", "skipped"), 0)
+    with _bar() as bar:
+        task = bar.add_task(kind, total=None)
+
+        def describe() -> str:
+            return f"{kind}: " + ", ".join(f"{n} {status}" for status, n in counts.items() if n) or kind
+
+        def progress(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total, description=describe())
+
+        def on_result(row) -> None:
+            counts[row.status] += 1
+            if row.status == "failed":
+                bar.console.print(Text.assemble(("failed ", "red"), f"{row.item}: {row.error}"))
+            bar.update(task, description=describe())
+
+        result = run_batch(
+            kind,
+            inputs or [],
+            out,
+            manifest=manifest,
+            client=scheduler,
+            workers=workers,
+            retries=retries,
+            resume=resume,
+            progress=progress,
+            on_result=on_result,
+            **options,
+        )
+    if as_json:
+        stdout.print_json(json.dumps(result.as_dict()))
+    else:
+        for row in result.failed:
+            stdout.print(f"failed  {row.item}: {row.error}", markup=False)
+        done = result.counts()
+        warned = sum(bool(row.warnings) for row in result.rows)
+        stdout.print(
+            f"{kind}: {done['ok']} ok, {done['failed']} failed, {done['skipped']} skipped (finished before) "
+            f"of {len(result.rows)} in {result.seconds:.1f} s on {result.executor}"
+            + (f"; {warned} with warnings (see the manifest)" if warned else ""),
+            markup=False,
+        )
+        stdout.print(f"wrote {result.json_path} and {result.csv_path.name}", markup=False)
+    if result.failed:
+        raise typer.Exit(1)
+
+
+@command("rig", parent=batch_app)
+def batch_rig(
+    heads: list[str] | None = typer.Argument(
+        None, metavar="HEADS...", help="Head meshes: paths or quoted globs ('scans/*.obj')."
+    ),
+    out: Path = _BATCH_OUT,
+    landmarks: str | None = typer.Option(
+        None, "--landmarks", help="A landmark file for every head, or one per head: '{dir}/{stem}.json'."
+    ),
+    auto_landmarks: bool = typer.Option(
+        False, "--auto-landmarks", help="Find landmarks with MediaPipe (the default without --landmarks)."
+    ),
+    units: Units | None = typer.Option(None, "--units", help="The meshes' units if the files do not say."),
+    force: bool = typer.Option(False, "--force", help="Write a rig even if its fit looks wrong."),
+    resolution: int = typer.Option(
+        10_000, "--resolution", min=1_500, max=250_000, help="Skin vertex count of the reference head."
+    ),
+    picture: bool = typer.Option(True, "--picture/--no-picture", help="Write NAME.fit.png for each head."),
+    manifest: Path | None = _BATCH_MANIFEST,
+    workers: int | None = _BATCH_WORKERS,
+    scheduler: str | None = _BATCH_SCHEDULER,
+    retries: int = _BATCH_RETRIES,
+    resume: bool = _BATCH_RESUME,
+    as_json: bool = _BATCH_JSON,
+) -> None:
+    """Rig many heads: NAME.mrig, NAME.fit.json and NAME.fit.png in OUTDIR per head, as `mimetic rig`.
+
+    Examples:
+
+    \b
+      mimetic batch rig 'scans/*.obj' --landmarks '{dir}/{stem}.json' -o rigs/
+      mimetic batch rig --manifest heads.csv -o rigs/ --scheduler tcp://10.0.0.1:8786 --retries 2
+    """
+    if landmarks is not None and auto_landmarks:
+        raise typer.BadParameter("give --landmarks or --auto-landmarks, not both", param_hint="'--landmarks'")
+    _batch("rig", heads, out, manifest, workers, scheduler, retries, resume, as_json,
+           landmarks=landmarks, auto_landmarks=auto_landmarks, units=units.value if units else None,
+           force=force, resolution=resolution, picture=picture)  # fmt: skip
+
+
+@command("animate", parent=batch_app)
+def batch_animate(
+    rigs: list[str] | None = typer.Argument(
+        None, metavar="RIGS...", help=".mrig rigs: paths or quoted globs."
+    ),
+    out: Path = _BATCH_OUT,
+    clip: str | None = typer.Option(None, "--clip", help="The clip JSON to play on every rig."),
+    format_: BatchClipFormat = typer.Option(BatchClipFormat.glb, "--format", help="What to write per rig."),
+    fps: float = typer.Option(30.0, "--fps", min=1e-3, max=240.0, help="Frames per second of the output."),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
+    audio: str | None = typer.Option(None, "--audio", help="A sound track for the videos (WAV, …)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Deformation engine."),
+    manifest: Path | None = _BATCH_MANIFEST,
+    workers: int | None = _BATCH_WORKERS,
+    scheduler: str | None = _BATCH_SCHEDULER,
+    retries: int = _BATCH_RETRIES,
+    resume: bool = _BATCH_RESUME,
+    as_json: bool = _BATCH_JSON,
+) -> None:
+    """Play a clip on many rigs: NAME.glb (or .usda, .usdc, .mp4) in OUTDIR per rig, as `mimetic animate`.
+
+    Examples:
+
+    \b
+      mimetic batch animate 'rigs/*.mrig' --clip hello.json -o anims/
+      mimetic batch animate 'rigs/*.mrig' --clip hello.json --format mp4 --size 256 -o videos/
+    """
+    _batch("animate", rigs, out, manifest, workers, scheduler, retries, resume, as_json,
+           clip=clip, format=format_.value, fps=fps, size=size, audio=audio, engine=engine.value)  # fmt: skip
+
+
+@command("render", parent=batch_app)
+def batch_render(
+    files: list[str] | None = typer.Argument(
+        None, metavar="FILES...", help="Meshes or .mrig rigs: paths or quoted globs."
+    ),
+    out: Path = _BATCH_OUT,
+    format_: BatchImageFormat = typer.Option(BatchImageFormat.png, "--format", help="Image type."),
+    view: SheetView = typer.Option(SheetView.all, "--view", help="One view, or all three in a sheet."),
+    size: int = typer.Option(512, "--size", min=64, max=4096, help="Image size in pixels (per view)."),
+    wireframe: bool = typer.Option(False, "--wireframe", help="Draw the triangle edges."),
+    muscles: bool = typer.Option(True, "--muscles/--no-muscles", help="Draw a rig's muscles."),
+    units: Units | None = typer.Option(None, "--units", help="The meshes' units if the files do not say."),
+    manifest: Path | None = _BATCH_MANIFEST,
+    workers: int | None = _BATCH_WORKERS,
+    scheduler: str | None = _BATCH_SCHEDULER,
+    retries: int = _BATCH_RETRIES,
+    resume: bool = _BATCH_RESUME,
+    as_json: bool = _BATCH_JSON,
+) -> None:
+    """Render many meshes or rigs: NAME.png in OUTDIR per file, as `mimetic render`.
+
+    Examples:
+
+    \b
+      mimetic batch render 'rigs/*.mrig' -o pictures/
+      mimetic batch render 'scans/*.obj' --view front --size 256 --format jpg -o thumbs/
+    """
+    _batch("render", files, out, manifest, workers, scheduler, retries, resume, as_json,
+           format=format_.value, view=view.value, size=size, wireframe=wireframe, muscles=muscles,
+           units=units.value if units else None)  # fmt: skip
+
+
+@command("speak", parent=batch_app)
+def batch_speak(
+    rigs: list[str] | None = typer.Argument(
+        None, metavar="RIGS...", help=".mrig rigs: paths or quoted globs."
+    ),
+    out: Path = _BATCH_OUT,
+    text: str | None = typer.Option(None, "--text", help="What every head says (or a 'text' column)."),
+    text_file: str | None = typer.Option(None, "--text-file", help="Read the text from a file."),
+    timings: str | None = typer.Option(None, "--timings", help="Phone timings (TextGrid, CSV or JSON)."),
+    audio: str | None = typer.Option(None, "--audio", help="A recording (WAV) of the text."),
+    synthesize: bool = typer.Option(False, "--synthesize", help="Speak the text with espeak-ng."),
+    language: Language = typer.Option(Language.en, "--language", help="en or nso (Northern Sotho)."),
+    visemes: str | None = typer.Option(None, "--visemes", help="Viseme map: en, nso, mpeg4 or a .json."),
+    format_: BatchSpeakFormat = typer.Option(BatchSpeakFormat.glb, "--format", help="What to write per rig."),
+    fps: float = typer.Option(30.0, "--fps", min=1.0, max=240.0, help="Frames per second."),
+    rate: float = typer.Option(1.0, "--rate", min=0.2, max=5.0, help="Speaking rate for text alone."),
+    jaw: float = typer.Option(1.0, "--jaw", min=0.0, max=2.0, help="Jaw intensity (JALI dial)."),
+    lips: float = typer.Option(1.0, "--lips", min=0.0, max=2.0, help="Lip intensity (JALI dial)."),
+    eyes: bool = typer.Option(True, "--eyes/--no-eyes", help="Add blinks and small gaze saccades."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the blinks and saccades."),
+    baseline: bool = typer.Option(False, "--baseline", help="Linear interpolation between visemes."),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Deformation engine."),
+    manifest: Path | None = _BATCH_MANIFEST,
+    workers: int | None = _BATCH_WORKERS,
+    scheduler: str | None = _BATCH_SCHEDULER,
+    retries: int = _BATCH_RETRIES,
+    resume: bool = _BATCH_RESUME,
+    as_json: bool = _BATCH_JSON,
+) -> None:
+    """Lip-sync many rigs: NAME.glb (or .mp4, .usda, .json, .csv) in OUTDIR per rig, as `mimetic speak`.
+
+    Examples:
+
+    \b
+      mimetic batch speak 'rigs/*.mrig' --text "Hello there" -o talk/
+      mimetic batch speak --manifest lines.csv --format mp4 -o talk/   # input,text per row
+    """
+    _batch("speak", rigs, out, manifest, workers, scheduler, retries, resume, as_json,
+           text=text, text_file=text_file, timings=timings, audio=audio, synthesize=synthesize,
+           language=language.value, visemes=visemes, format=format_.value, fps=fps, rate=rate, jaw=jaw,
+           lips=lips, eyes=eyes, seed=seed, baseline=baseline, size=size, engine=engine.value)  # fmt: skip
+
+
+@command("capture", parent=batch_app)
+def batch_capture(
+    rig: str = typer.Argument(..., metavar="RIG", help="The .mrig rig to solve every take on."),
+    takes: list[str] | None = typer.Argument(
+        None, metavar="TAKES...", help="Trajectories (.c3d .trc .csv): paths or quoted globs."
+    ),
+    out: Path = _BATCH_OUT,
+    format_: BatchCaptureFormat = typer.Option(BatchCaptureFormat.json, "--format", help="Per take."),
+    markers: str | None = typer.Option(None, "--markers", help=_MARKERS_HELP),
+    fps: float | None = typer.Option(None, "--fps", min=1e-3, help="Frame rate, when a file has none."),
+    units: CaptureUnits | None = typer.Option(None, "--units", help="Units, when a file has none."),
+    neutral_frame: int = typer.Option(0, "--neutral-frame", min=0, help="A frame with a neutral face."),
+    channels: str = typer.Option("all", "--channels", help=_CHANNELS_HELP),
+    cutoff: float = typer.Option(8.0, "--cutoff", min=0.0, help="Smoothing cutoff in Hz (0: none)."),
+    robust: bool = typer.Option(True, "--robust/--no-robust", help="Reject spikes and unexplained markers."),
+    sparsity: float = typer.Option(0.0, "--sparsity", min=0.0, help="L1 weight (activation units)."),
+    refine: int = typer.Option(0, "--refine", min=0, max=5, help="Gauss-Newton steps against the engine."),
+    report: bool = typer.Option(True, "--report/--no-report", help="Write NAME.report.json per take."),
+    size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Engine to solve against."),
+    manifest: Path | None = _BATCH_MANIFEST,
+    workers: int | None = _BATCH_WORKERS,
+    scheduler: str | None = _BATCH_SCHEDULER,
+    retries: int = _BATCH_RETRIES,
+    resume: bool = _BATCH_RESUME,
+    as_json: bool = _BATCH_JSON,
+) -> None:
+    """Solve many takes on one rig: NAME.json (the clip) and NAME.report.json in OUTDIR per take, as
+    `mimetic capture solve`; each worker bakes the rig once.
+
+    Examples:
+
+    \b
+      mimetic batch capture head.mrig 'takes/*.c3d' -o clips/
+      mimetic batch capture head.mrig 'openface/*.csv' --fps 30 --channels determined -o clips/
+    """
+    _batch("capture", takes, out, manifest, workers, scheduler, retries, resume, as_json,
+           rig=rig, format=format_.value, markers=markers, fps=fps, units=units.value if units else None,
+           neutral_frame=neutral_frame, channels=channels, cutoff=cutoff, robust=robust, sparsity=sparsity,
+           refine=refine, report=report, size=size, engine=engine.value)  # fmt: skip

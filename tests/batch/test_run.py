@@ -1,0 +1,220 @@
+"""End-to-end tests of ``mimetic batch rig`` and ``rig_many``: a local Dask cluster, failures, resume,
+the process-pool fallback, retries.
+
+The heads are generated at the smallest resolution (1,500 skin vertices, 3,170 in all) and rigged on a
+reference of the same size, with landmark files, so the whole file takes well under a minute.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from mimetic.batch import BatchError, rig_many, run_batch
+from mimetic.batch.items import Option
+from mimetic.batch.jobs import JOBS, Job
+from mimetic.errors import MimeticError, MissingExtraError
+from mimetic.fit.landmarks import write_landmarks
+from mimetic.mesh.io import save_mesh
+from mimetic.rig.format import load_rig
+from mimetic.rig.model import rigs_equal
+from mimetic.testing import head_landmarks, run_cli, small_head
+
+RESOLUTION = 1_500
+SEEDS = (0, 1, 2)
+BROKEN = "broken.glb: not a GLB file (it does not start with 'glTF'). Check the file's format."
+
+
+@pytest.fixture(scope="module")
+def heads(tmp_path_factory) -> Path:
+    """Three generated heads (GLB) with their landmark files, and a corrupt GLB among them."""
+    folder = tmp_path_factory.mktemp("heads")
+    for seed in SEEDS:
+        head = small_head(seed, RESOLUTION)
+        save_mesh(head.mesh, folder / f"head{seed}.glb")
+        write_landmarks(head_landmarks(head), folder / f"head{seed}.json")
+    (folder / "broken.glb").write_bytes(b"not a mesh at all")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def rigged(heads, cluster, tmp_path_factory):
+    """``mimetic batch rig`` of the four heads on the 2-worker cluster: (CLI result, OUTDIR)."""
+    out = tmp_path_factory.mktemp("rigs")
+    result = run_cli(
+        "batch", "rig", heads / "*.glb", "--landmarks", heads / "{stem}.json", "--resolution", RESOLUTION,
+        "--scheduler", cluster.scheduler_address, "-o", out,
+    )  # fmt: skip
+    return result, out
+
+
+def test_batch_rig_fails_the_corrupt_head_alone_and_exits_1(rigged, heads):
+    result, out = rigged
+    assert result.exit_code == 1
+    assert f"failed  broken: {heads / BROKEN}" in result.output
+    assert "Traceback" not in result.output
+    assert "rig: 3 ok, 1 failed, 0 skipped" in result.output
+    manifest = json.loads((out / "batch-rig.json").read_text())
+    assert manifest["counts"] == {"ok": 3, "failed": 1, "skipped": 0}
+    rows = {row["item"]: row for row in manifest["rows"]}
+    assert list(rows) == ["broken", "head0", "head1", "head2"]  # input order: the sorted glob
+    assert rows["broken"]["status"] == "failed" and rows["broken"]["outputs"] == []
+    assert rows["broken"]["error"] == str(heads / BROKEN)  # the MeshError's own line
+    for seed in SEEDS:
+        row = rows[f"head{seed}"]
+        assert row["status"] == "ok" and row["error"] == "" and row["seconds"] > 0
+        assert row["outputs"] == [f"head{seed}.mrig", f"head{seed}.fit.json", f"head{seed}.fit.png"]
+        assert 0 < row["residual"] < 0.1  # mean surface residual, % of the head diagonal
+        report = json.loads((out / f"head{seed}.fit.json").read_text())
+        assert report["accepted"] and report["mean_pct"] == row["residual"]
+        assert (out / ".mimetic-batch" / f"head{seed}.json").is_file()
+    assert not (out / ".mimetic-batch" / "broken.json").exists()  # a failure leaves no record
+    lines = (out / "batch-rig.csv").read_text().splitlines()
+    assert lines[0] == "item,status,seconds,error,residual,input,outputs,warnings" and len(lines) == 5
+    assert lines[1].startswith("broken,failed,")
+
+
+def test_batch_rig_writes_what_mimetic_rig_writes_bit_for_bit(rigged, heads, tmp_path):
+    """save_rig is deterministic (fixed zip times, no clock in the file), so the bytes are compared."""
+    _, out = rigged
+    single = tmp_path / "head1.mrig"
+    result = run_cli(
+        "rig",
+        heads / "head1.glb",
+        "--landmarks",
+        heads / "head1.json",
+        "--resolution",
+        RESOLUTION,
+        "-o",
+        single,
+    )
+    assert result.exit_code == 0, result.output
+    for name in ("head1.mrig", "head1.fit.json", "head1.fit.png"):
+        assert (out / name).read_bytes() == (tmp_path / name).read_bytes(), name
+    assert rigs_equal(load_rig(out / "head1.mrig"), load_rig(single))
+
+
+def test_rig_many_resumes_only_the_items_left_unfinished(rigged, heads, client, tmp_path):
+    _, done = rigged
+    out = tmp_path / "moved"
+    shutil.copytree(done, out)  # a finished run, in a folder that moved
+    (out / "head1.mrig").unlink()  # interrupted: an output and its record gone,
+    (out / ".mimetic-batch" / "head1.json").unlink()
+    stale = out / ".head1.mrig.x7k2p9.tmp"  # and a writer's half-written temporary file left behind
+    stale.write_bytes(b"half a rig")
+    picture = out / "head2.fit.png"  # an output changed after its record was written
+    picture.write_bytes(picture.read_bytes()[:100])
+    seen = []
+    manifest = rig_many(
+        heads / "head*.glb", out, client=client, landmarks="{dir}/{stem}.json", resolution=RESOLUTION,
+        on_result=lambda row: seen.append((row.item, row.status)),
+    )  # fmt: skip
+    assert [(r.item, r.status) for r in manifest.rows] == [
+        ("head0", "skipped"),
+        ("head1", "ok"),
+        ("head2", "ok"),
+    ]
+    assert seen[0] == ("head0", "skipped") and sorted(seen[1:]) == [("head1", "ok"), ("head2", "ok")]
+    before = {row["item"]: row for row in json.loads((done / "batch-rig.json").read_text())["rows"]}
+    assert manifest.rows[0].residual == before["head0"]["residual"]  # a skipped item's, from its record
+    assert not stale.exists()  # cleared when its item ran again
+    for name in ("head1.mrig", "head2.fit.png"):
+        assert (out / name).read_bytes() == (done / name).read_bytes()
+    assert manifest.executor.startswith("dask tcp://") and "2 workers" in manifest.executor
+    again = rig_many(
+        heads / "head*.glb", out, client=client, landmarks="{dir}/{stem}.json", resolution=RESOLUTION
+    )
+    assert [r.status for r in again.rows] == ["skipped"] * 3 and again.executor == "nothing to run"
+    assert json.loads(again.json_path.read_text())["counts"]["skipped"] == 3
+
+
+def test_rig_many_without_dask_runs_on_a_process_pool(rigged, heads, tmp_path, monkeypatch):
+    _, done = rigged
+    monkeypatch.setitem(sys.modules, "distributed", None)  # `import distributed` now fails
+    with pytest.raises(MissingExtraError, match=r"extra \[batch\]"):
+        rig_many([heads / "head0.glb"], tmp_path / "never", client="tcp://127.0.0.1:8786")
+    manifest = rig_many(
+        [heads / "head0.glb", heads / "broken.glb"], tmp_path, workers=2, landmarks="{dir}/{stem}.json",
+        resolution=RESOLUTION,
+    )  # fmt: skip
+    assert manifest.executor == "ProcessPoolExecutor, 2 workers"
+    assert [(r.item, r.status) for r in manifest.rows] == [("head0", "ok"), ("broken", "failed")]
+    assert manifest.failed[0].error == str(heads / BROKEN)
+    assert (tmp_path / "head0.mrig").read_bytes() == (done / "head0.mrig").read_bytes()
+
+
+# --------------------------------------------------------------------------- retries, without meshes
+
+
+@pytest.fixture
+def flaky(monkeypatch, tmp_path):
+    """A job kind "flaky" whose items fail unexpectedly on their first attempt (an OSError), or with bad
+    input every time (a MimeticError) when their input's name says "bad"; counts attempts per item."""
+    attempts: dict[str, int] = {}
+
+    def run(item) -> float:
+        attempts[item.name] = attempts.get(item.name, 0) + 1
+        if "bad" in item.name:
+            raise MimeticError(f"{item.name}: bad input, fix it")
+        if attempts[item.name] == 1:
+            raise OSError("the file server hiccuped\n(try again)")
+        Path(item.outputs[0]).write_text("done")
+        return 0.5
+
+    monkeypatch.setitem(JOBS, "flaky", Job(run, {"format": Option("text", "txt")}, (".txt",)))
+    for name in ("a", "b", "bad"):
+        (tmp_path / f"{name}.in").write_text("x")
+    return tmp_path, attempts
+
+
+def test_run_batch_retries_unexpected_failures_but_not_bad_input(flaky):
+    folder, attempts = flaky
+    with ThreadPoolExecutor(2) as pool:
+        once = run_batch("flaky", folder / "*.in", folder / "once", client=pool)
+        assert [(r.item, r.status, r.error) for r in once.rows] == [
+            ("a", "failed", "OSError: the file server hiccuped (try again)"),  # one line
+            ("b", "failed", "OSError: the file server hiccuped (try again)"),
+            ("bad", "failed", "bad: bad input, fix it"),
+        ]
+        attempts.clear()
+        twice = run_batch("flaky", folder / "*.in", folder / "twice", client=pool, retries=1)
+    assert [r.status for r in twice.rows] == ["ok", "ok", "failed"] and twice.rows[0].residual == 0.5
+    assert attempts == {"a": 2, "b": 2, "bad": 1}  # bad input is a verdict: not retried
+
+
+def test_run_batch_retries_on_dask(flaky):
+    distributed = pytest.importorskip("distributed")
+    folder, attempts = flaky
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Port .* is already in use")  # the session cluster's
+        cluster = distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=None)
+    with cluster:
+        with distributed.Client(cluster) as client:  # threads in this process: the patched JOBS
+            manifest = run_batch("flaky", folder / "*.in", folder / "out", client=client, retries=2)
+    assert [r.status for r in manifest.rows] == ["ok", "ok", "failed"]
+    assert attempts == {"a": 2, "b": 2, "bad": 1}
+
+
+def test_batch_cli_refuses_bad_usage(heads, tmp_path):
+    assert run_cli("batch", "rig", "-o", tmp_path).exit_code == 2  # no inputs
+    both = run_cli(
+        "batch", "rig", heads / "head0.glb", "--workers", 2, "--scheduler", "tcp://x:1", "-o", tmp_path
+    )
+    assert both.exit_code == 2 and "not both" in both.output
+    nothing = run_cli("batch", "rig", heads / "*.stl", "-o", tmp_path)
+    assert nothing.exit_code == 1 and "no file matches" in nothing.output
+    with pytest.raises(BatchError, match="not both"):
+        rig_many([heads / "head0.glb"], tmp_path, client="tcp://x:1", workers=2)
+
+
+def test_every_batch_command_help_shows_examples():
+    for sub in ("rig", "animate", "render", "speak", "capture"):
+        result = run_cli("batch", sub, "--help")
+        assert result.exit_code == 0 and "Examples:" in result.output, sub
+        assert f"mimetic batch {sub}" in result.output, sub
