@@ -314,3 +314,18 @@ def test_solved_clip_plays_on_another_rig(rig, baked, ibug):
         played = retarget(performance.clip, other)
     j = other.channel_index("jaw_open")
     np.testing.assert_allclose(played.values[:, j], performance.clip.values[:, rig.channel_index("jaw_open")])
+
+
+def test_noise_gain_matches_the_spread_of_solves_of_noisy_markers(rig, baked, ibug):
+    """The predicted per-channel standard deviation against 400 solves of pure noise."""
+    from mimetic.capture.performance import marker_deltas, noise_gain, prepare_marker_solver
+
+    rng = np.random.default_rng(10)
+    names = ("jaw_open", "cheek_puff_L", "mouth_slide_R")
+    index = [baked.channels.index(n) for n in names]
+    deltas = marker_deltas(rig, baked, ibug)[index]
+    solver = prepare_marker_solver(deltas, ibug, np.full(3, -np.inf), np.full(3, np.inf))
+    noise = 0.05
+    y = rng.normal(scale=noise, size=(400, ibug.n_markers, 3))
+    x, _ = solver.solve(y, np.ones((400, ibug.n_markers)))
+    np.testing.assert_allclose(x.std(axis=0), noise * noise_gain(solver), rtol=0.15)

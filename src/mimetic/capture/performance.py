@@ -371,10 +371,9 @@ def noise_gain(solver: MarkerSolver) -> np.ndarray:
     ``sqrt(diag(H⁻¹ Hₙ H⁻¹))`` with H the damped normal matrix and Hₙ its undamped part. A channel
     whose gain times the capture's noise is large compared with its range is not determined by the
     markers (two muscles that move them alike, a lid seen by no marker)."""
-    k = solver.rows.shape[2]
-    undamped = solver.blocks.sum(axis=0)
+    undamped = solver.blocks.sum(axis=0)  # (k, k)
     inverse = np.linalg.inv(undamped + np.diag(solver.damping))
-    return np.sqrt(np.maximum(np.diag(inverse @ undamped @ inverse), 0.0))[:k]
+    return np.sqrt(np.maximum(np.diag(inverse @ undamped @ inverse), 0.0))
 
 
 def marker_deltas(rig: Rig, basis: Basis, markers: MarkerSet) -> np.ndarray:
