@@ -50,7 +50,7 @@ from mimetic.capture.head import HeadMotion, calibrate, head_motion
 from mimetic.capture.lift import lift_landmarks
 from mimetic.capture.markers import MarkerSet, layout_for, marker_set
 from mimetic.capture.qp import box_qp_frames
-from mimetic.capture.solve import box_qp
+from mimetic.capture.solve import box_qp, channel_bounds
 from mimetic.capture.trajectories import CaptureError, Trajectories
 from mimetic.engines.basis import Basis
 from mimetic.errors import MimeticWarning
@@ -394,8 +394,8 @@ def determined_channels(
     effect = np.sqrt(np.einsum("cmd,cmd->c", deltas, deltas))
     seen = (effect > MIN_MOVE_REL * effect.max()) & ~np.isin(basis.channels, GAZE_CHANNELS)
     keep = list(np.flatnonzero(seen))
-    by_name = {ch.name: ch for ch in rig.channels}
-    span = np.array([by_name[n].maximum - by_name[n].minimum for n in basis.channels])
+    lower, upper = channel_bounds(basis, rig)
+    span = upper - lower
     zeros = np.zeros(len(basis.channels))
     while keep:
         solver = prepare_marker_solver(deltas[keep], markers, zeros[keep], zeros[keep])
@@ -451,8 +451,8 @@ def stable_markers(rig: Rig, basis: Basis, deltas: np.ndarray, markers: MarkerSe
     """(m,) bool: the markers to fit the head's motion to: those no channel moves by more than
     ``STABLE_MOTION_REL`` of the head (at the channel's extreme); if fewer than
     ``MIN_STABLE_MARKERS``, the layout's stable markers; else the least-moving ones."""
-    by_name = {ch.name: ch for ch in rig.channels}
-    extent = np.array([max(abs(by_name[n].minimum), abs(by_name[n].maximum)) for n in basis.channels])
+    lower, upper = channel_bounds(basis, rig)
+    extent = np.maximum(np.abs(lower), np.abs(upper))
     motion = (np.linalg.norm(deltas, axis=2) * extent[:, None]).max(axis=0)  # (m,) rig units
     still = motion <= STABLE_MOTION_REL * rig.scale
     for candidates in (still, markers.stable):
@@ -619,9 +619,7 @@ def solve_performance(
             "determine "
             f"{rows_needed} channels; pass fewer channels (active=, CLI --channels) or capture more markers"
         )
-    by_name = {ch.name: ch for ch in rig.channels}
-    lower = np.array([by_name[basis.channels[j]].minimum for j in free_index])
-    upper = np.array([by_name[basis.channels[j]].maximum for j in free_index])
+    lower, upper = (bound[free_index] for bound in channel_bounds(basis, rig))
     solver = prepare_marker_solver(
         deltas[free_index], markers, lower, upper, regularization=regularization, sparsity=sparsity
     )
@@ -667,9 +665,8 @@ def solve_performance(
         x, residual = solver.solve(y - (model - (x @ flat_deltas).reshape(f, m, 3)), weights)
     step("solve", HEAD_ROUNDS, HEAD_ROUNDS)
     values = np.zeros((f, len(rig.channels)))
-    name_to_column = {n: j for j, n in enumerate(rig.channel_names)}
     for i, j in enumerate(free_index):
-        values[:, name_to_column[basis.channels[j]]] = x[:, i]
+        values[:, rig.channel_index(basis.channels[j])] = x[:, i]
     angles = head.angles()
     flagged = (
         ~head.fitted
@@ -677,11 +674,10 @@ def solve_performance(
         | (trajectories.confidence < MIN_CONFIDENCE)
     )
     for k, name in enumerate(HEAD_CHANNELS):
-        if name in name_to_column:
-            ch = by_name[name]
-            outside = (angles[:, k] < ch.minimum) | (angles[:, k] > ch.maximum)
-            flagged |= outside
-            values[:, name_to_column[name]] = np.clip(angles[:, k], ch.minimum, ch.maximum)
+        if name in rig.channel_names:
+            ch = rig.channel(name)
+            flagged |= (angles[:, k] < ch.minimum) | (angles[:, k] > ch.maximum)
+            values[:, rig.channel_index(name)] = np.clip(angles[:, k], ch.minimum, ch.maximum)
     with np.errstate(invalid="ignore", divide="ignore"):
         error = np.sqrt((np.where(usable, residual, 0.0) ** 2).sum(axis=1) / usable.sum(axis=1))
     if flagged.any():

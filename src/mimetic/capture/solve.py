@@ -412,7 +412,7 @@ def _check_targets(basis: Basis, targets: object, vertices: np.ndarray) -> np.nd
     return frames
 
 
-def _bounds(basis: Basis, channels: Rig | Sequence[Channel] | None) -> tuple[np.ndarray, np.ndarray]:
+def channel_bounds(basis: Basis, channels: Rig | Sequence[Channel] | None) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds (c,) for the basis's channels, from channel definitions matched by name."""
     c = basis.n_channels
     if channels is None:
@@ -478,7 +478,7 @@ def prepare_solver(
     if not (np.isfinite(tolerance) and tolerance >= 0):
         raise ActivationError(f"tolerance must be a finite number ≥ 0; got {tolerance}")
     index = _check_vertices(basis, vertices)  # (s,)
-    lower, upper = _bounds(basis, channels)
+    lower, upper = channel_bounds(basis, channels)
     if np.any(lower > 0) or np.any(upper < 0):
         j = int(np.flatnonzero((lower > 0) | (upper < 0))[0])
         raise ActivationError(
