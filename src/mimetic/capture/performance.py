@@ -266,7 +266,8 @@ def smooth_markers(
     longest = max(1, round(MAX_GAP_S * fps))
     filled = np.nan_to_num(y)
     for j in range(m):
-        if seen[:, j].sum() < 3:
+        if seen[:, j].sum() < 3:  # too few samples to smooth: kept as captured
+            smoothed[:, j] = np.where(seen[:, j, None], y[:, j], np.nan)
             continue
         weights = seen[:, j].astype(np.float64)
         for _ in range(ROBUST_ROUNDS if robust else 1):
@@ -383,6 +384,16 @@ def marker_deltas(rig: Rig, basis: Basis, markers: MarkerSet) -> np.ndarray:
     return flat.reshape(-1, c, 3).transpose(1, 0, 2)
 
 
+def _visible_channels(basis: Basis, deltas: np.ndarray, active: Sequence[str] | None = None) -> np.ndarray:
+    """(c,) bool: channels moving the markers (``deltas`` (c, m, 3)) by at least ``MIN_MOVE_REL`` of
+    the strongest, among ``active`` (default: all but the gaze, ``GAZE_CHANNELS``)."""
+    effect = np.sqrt(np.einsum("cmd,cmd->c", deltas, deltas))
+    chosen = (
+        ~np.isin(basis.channels, GAZE_CHANNELS) if active is None else np.isin(basis.channels, list(active))
+    )
+    return (effect > MIN_MOVE_REL * effect.max()) & chosen
+
+
 def determined_channels(
     rig: Rig, basis: Basis, markers: MarkerSet, *, noise: float, tolerance: float = 0.02
 ) -> tuple[str, ...]:
@@ -391,9 +402,7 @@ def determined_channels(
     one with the largest ``noise_gain`` · ``noise`` / range until each is within ``tolerance`` of
     its range (``noise``: per-coordinate marker noise in rig units, after smoothing)."""
     deltas = marker_deltas(rig, basis, markers)
-    effect = np.sqrt(np.einsum("cmd,cmd->c", deltas, deltas))
-    seen = (effect > MIN_MOVE_REL * effect.max()) & ~np.isin(basis.channels, GAZE_CHANNELS)
-    keep = list(np.flatnonzero(seen))
+    keep = list(np.flatnonzero(_visible_channels(basis, deltas)))
     lower, upper = channel_bounds(basis, rig)
     span = upper - lower
     zeros = np.zeros(len(basis.channels))
@@ -585,6 +594,20 @@ def solve_performance(
         _neutral_points(points, outliers, neutral_frame, trajectories.fps), rig_points, calibration
     )
     deltas = marker_deltas(rig, basis, markers)  # (c, m, 3)
+    # the channels the markers see, and whether the markers can tell them apart
+    unknown = [n for n in active or () if n not in basis.channels]
+    if unknown:
+        raise CaptureError(f"active names unknown channel(s) {', '.join(unknown[:5])}")
+    free_index = np.flatnonzero(_visible_channels(basis, deltas, active))
+    counts = seen.sum(axis=1)
+    typical = int(np.median(counts[counts > 0])) if counts.any() else 0  # empty frames are flagged later
+    constraints = 3 * typical - int((markers.sliding & seen.any(axis=0)).sum())
+    if constraints < len(free_index):
+        raise CaptureError(
+            f"{trajectories.source}: {typical} markers per frame ({constraints} coordinates) cannot "
+            f"determine {len(free_index)} channels; pass fewer channels (active=, CLI --channels) or "
+            "capture more markers"
+        )
     stable = stable_markers(rig, basis, deltas, markers)
     head = head_motion(
         points[:, stable],
@@ -599,26 +622,6 @@ def solve_performance(
     moved = points @ S[:, :3, :3].transpose(0, 2, 1) + S[:, None, :3, 3]
     y = moved - reference[None]  # (f, m, 3), NaN where missing
     usable = np.isfinite(y).all(axis=2) & ~outliers
-    # the channels the markers see
-    effect = np.sqrt(np.einsum("cmd,cmd->c", deltas, deltas))
-    free = effect > MIN_MOVE_REL * effect.max()
-    if active is not None:
-        unknown = [n for n in active if n not in basis.channels]
-        if unknown:
-            raise CaptureError(f"active names unknown channel(s) {', '.join(unknown[:5])}")
-        free &= np.isin(basis.channels, list(active))
-    else:
-        free &= ~np.isin(basis.channels, GAZE_CHANNELS)
-    free_index = np.flatnonzero(free)
-    rows_needed = len(free_index)
-    typical = int(np.median(usable.sum(axis=1))) if f else 0
-    constraints = 3 * typical - 1 * int((markers.sliding & usable.any(axis=0)).sum())
-    if constraints < rows_needed:
-        raise CaptureError(
-            f"{trajectories.source}: {typical} markers per frame ({constraints} coordinates) cannot "
-            "determine "
-            f"{rows_needed} channels; pass fewer channels (active=, CLI --channels) or capture more markers"
-        )
     lower, upper = (bound[free_index] for bound in channel_bounds(basis, rig))
     solver = prepare_marker_solver(
         deltas[free_index], markers, lower, upper, regularization=regularization, sparsity=sparsity
@@ -633,7 +636,7 @@ def solve_performance(
     def realign(model: np.ndarray) -> tuple[HeadMotion, np.ndarray]:
         """The head fitted to the trusted fixed markers less the ``model`` (f, m, 3) expression; the
         stabilised displacements y."""
-        fixed = (weights > 0.5) & ~markers.sliding
+        fixed = (weights > 0.5) & (~markers.sliding | stable)  # the first fit's markers, and any fixed one
         motion = head_motion(
             np.where(fixed[..., None], points, np.nan),
             reference + model,
