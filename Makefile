@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed-stamp
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet -e '.[dev,track,usd,speech,batch]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,track,usd,speech,batch,view]'
 	touch $(STAMP)
 
 demo: $(STAMP)

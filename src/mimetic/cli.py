@@ -1254,6 +1254,57 @@ def _rig_or_default(rig_file: Path | None):
 
 
 @command()
+def view(
+    source: Path = typer.Argument(
+        ..., metavar="RIG", help="A .mrig rig, or a mesh (.obj .ply .stl .glb) to pick landmarks on."
+    ),
+    port: int = typer.Option(8080, "--port", min=1, max=65535, help="The port to serve the page on."),
+    host: str = typer.Option(
+        "127.0.0.1", "--host", help="The address to listen on (0.0.0.0 shares the page on your network)."
+    ),
+    engine: EngineName = typer.Option(EngineName.wire, "--engine", help="The engine shown first."),
+    clip: Path | None = typer.Option(None, "--clip", help="A clip JSON to load on the timeline."),
+    audio: Path | None = typer.Option(None, "--audio", help="The clip's sound (WAV), played with it."),
+    landmarks: Path | None = typer.Option(
+        None,
+        "--landmarks",
+        help="Where picked landmarks are saved (default: beside SOURCE).",
+    ),
+) -> None:
+    """Open RIG in a local web page: sliders, expressions, keys and playback, landmark picking.
+
+    Needs the [view] extra (pip install 'mimetic[view]'). Stop it with Ctrl-C.
+
+    Examples:
+
+    \b
+      mimetic view head.mrig
+      mimetic view head.mrig --clip speech.clip.json --audio speech.wav --port 8081
+      mimetic view scan.obj --landmarks scan.json
+    """
+    import time
+
+    from mimetic.view.web import start
+
+    for given, option in ((clip, "--clip"), (audio, "--audio")):
+        if given is not None and not given.is_file():
+            raise MimeticError(f"{option} {given}: no such file")
+    viewer = start(
+        source, host=host, port=port, engine=engine.value, clip=clip, audio=audio, landmarks_out=landmarks
+    )
+    if viewer.error:
+        stderr.print(Text.assemble(("error: ", "bold red"), viewer.error))
+        stderr.print("the page shows the error too; Ctrl-C to stop")
+    shown = "localhost" if host in ("127.0.0.1", "::1") else host
+    stdout.print(f"mimetic view: http://{shown}:{viewer.server.get_port()}  (Ctrl-C to stop)")
+    try:
+        while True:
+            time.sleep(1.0)
+    finally:
+        viewer.server.stop()
+
+
+@command()
 def demo(
     out: Path = typer.Option(Path("mimetic-demo"), "-o", "--out", help="Folder for the demo outputs."),
     resolution: int = typer.Option(

@@ -13,14 +13,18 @@ from mimetic.view.sheet import draw_lines, overlay_segments
 KIND_COLORS = {"linear": (0.95, 0.25, 0.2), "sphincter": (1.0, 0.85, 0.2), "sheet": (0.2, 0.8, 0.95)}
 
 
-def muscle_segments(rig: Rig, *, ring_segments: int = 24) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Line segments (k, 2, 3) in rig units, their colours (k, 3) and a ring flag (k,) bool.
+def muscle_segments(
+    rig: Rig, *, ring_segments: int = 24, vertices: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Line segments (k, 2, 3) in rig units, their colours (k, 3) and a ring flag (k,) bool, on the
+    rest mesh or on posed ``vertices`` (n, 3) (the bony attachments stay where they are).
 
     Linear and sheet muscles are one segment from the bony attachment (the origin inset toward
     the head centre) to the insertion. A sphincter is an ellipse of ``ring_segments`` segments
     around its centre, with semi-axes from the insertion and ``width_rel``.
     """
-    v, f = rig.mesh.vertices, rig.mesh.faces
+    v = rig.mesh.vertices if vertices is None else vertices
+    f = rig.mesh.faces
     segments, colors, ring_flags = [], [], []
     for m in rig.muscles:
         insertion = m.insertion.position(v, f)
