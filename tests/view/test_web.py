@@ -69,6 +69,25 @@ def test_channel_groups_follow_the_thesis_tab(web, rig):
     assert "Other" not in groups.values()
 
 
+def test_display_pieces_draw_each_face_once_and_paint_the_eyes(web, rig):
+    from mimetic.render.raster import ALBEDO
+    from mimetic.view.look import rig_look
+
+    look = rig_look(rig)
+    pieces = {name: (faces, color) for name, faces, color in web.display_pieces(rig.mesh, look)}
+    drawn = np.sort(np.concatenate([faces for faces, _ in pieces.values()]))
+    np.testing.assert_array_equal(drawn, np.sort(look.faces))
+    for eye in ("eye_L", "eye_R"):  # painted in flat colours: sclera, iris, pupil
+        shades = sorted(sum(color) for name, (_, color) in pieces.items() if name.startswith(eye))
+        assert len(shades) == 3 and shades[0] < 40 and shades[2] > 600
+    skin = pieces["skin"][1]
+    assert np.abs(np.array(skin) - 255 * np.array(ALBEDO)).max() < 12  # the main colour keeps the name
+
+
+def test_error_text_is_shown_literally(web):
+    assert web._escape("bad_file_name.mrig: <missing> *x*") == r"bad\_file\_name.mrig: \<missing\> \*x\*"
+
+
 def test_a_slider_move_poses_every_part_like_the_engine(viewer, rig):
     viewer.sliders[("channels", "jaw_open")].value = 0.3
     pose = viewer.session.pose()

@@ -19,6 +19,7 @@ import base64
 import contextlib
 import errno
 import io
+import re
 import socket
 import threading
 import time
@@ -30,19 +31,6 @@ import numpy as np
 from mimetic.errors import MimeticError, MissingExtraError
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf")
-PART_COLORS = {
-    "skin": (224, 172, 150),
-    "ear_L": (224, 172, 150),
-    "ear_R": (224, 172, 150),
-    "eye_L": (240, 240, 236),
-    "eye_R": (240, 240, 236),
-    "teeth_upper": (245, 240, 225),
-    "teeth_lower": (245, 240, 225),
-    "tongue": (196, 90, 96),
-    "mouth": (120, 40, 48),
-}
-"""Display colours (sRGB 0–255) of the generated head's parts; other parts take the skin's."""
-
 GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("Brows and eyes", ("frontalis", "corrugator", "procerus", "orbicularis_oculi", "levator_palpebrae",
                         "eyelid")),
@@ -66,6 +54,15 @@ FACINGS = {
 """How a file's head may stand (up axis, the way the face looks): the landmark picker turns the
 head's frame to show it upright; the coordinates, and so the picked landmarks, stay the file's."""
 
+COLOR_LEVELS = 16
+"""Face colours are told apart at this many levels per channel."""
+
+MAX_PAINTED_COLORS = 6
+"""A part with more distinct face colours than this is textured and drawn in one colour."""
+
+MAIN_COLOR_SHARE = 0.8
+"""A part whose main colour covers this share of its faces is drawn in one colour."""
+
 SLIDER_STEPS = 200
 """Steps across a slider's range."""
 
@@ -80,6 +77,63 @@ def channel_group(name: str) -> str:
         if name.startswith(prefixes):
             return group
     return "Other"
+
+
+def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, int]]]:
+    """The meshes the page draws, each one colour: (name, face indices (k,), sRGB 0–255).
+
+    One piece per part and colour (faces no part names form "surface"), keeping only the faces
+    ``look`` (a ``render.appearance.Surface``) draws, so eye films and lash tips stay hidden. A part
+    painted in a few flat colours (an eyeball's sclera, iris and pupil) is split by face colour; a
+    textured or tinted one (the skin with its lips) takes its median colour. An eyeball the look paints by the
+    angle from its gaze axis is split into sclera, iris and pupil pieces by that angle. The pieces
+    ride on the mesh's vertices, so an iris turns with its eye.
+    """
+    from mimetic.render.appearance import IRIS_ANGLE_RAD, NOT_EYE, PUPIL, PUPIL_ANGLE_RAD
+
+    def rgb(color) -> tuple[int, int, int]:
+        return tuple(round(255 * min(max(float(c), 0.0), 1.0)) for c in color)
+
+    drawn = np.zeros(mesh.n_faces, bool)
+    drawn[look.faces] = True
+    parts = dict(mesh.parts)
+    covered = np.zeros(mesh.n_faces, bool)
+    for faces in parts.values():
+        covered[faces] = True
+    if not covered.all():
+        parts["surface"] = np.flatnonzero(~covered)
+    pieces = []
+    for name, face_ids in parts.items():
+        face_ids = face_ids[drawn[face_ids]]
+        if len(face_ids) == 0:
+            continue
+        corners = mesh.faces[face_ids]
+        gaze = look.gaze_cos[corners].mean(axis=1)
+        if (look.gaze_cos[corners] == NOT_EYE).any():
+            corner_levels = np.round(look.colors[corners] * COLOR_LEVELS)  # (k, 3 corners, rgb)
+            same = (corner_levels[:, 1] == corner_levels[:, 2]).all(axis=1)  # else corner 0 is the majority
+            levels = np.where(same[:, None], corner_levels[:, 1], corner_levels[:, 0])  # or a tie
+            distinct, which = np.unique(levels, axis=0, return_inverse=True)
+            counts = np.bincount(which.ravel())
+            if len(distinct) > MAX_PAINTED_COLORS or counts.max() >= MAIN_COLOR_SHARE * len(face_ids):
+                # a texture, or a tint (lips on the skin) that flat pieces would draw as a jagged edge
+                pieces.append((name, face_ids, rgb(np.median(look.colors[np.unique(corners)], axis=0))))
+                continue
+            order = np.argsort(-counts)  # the part's main colour keeps its name
+            for rank, k in enumerate(order):
+                piece = name if rank == 0 else f"{name}_{rank}"
+                pieces.append((piece, face_ids[which.ravel() == k], rgb(distinct[k] / COLOR_LEVELS)))
+            continue
+        pupil, iris = gaze >= np.cos(PUPIL_ANGLE_RAD), gaze >= np.cos(IRIS_ANGLE_RAD)
+        sclera = np.median(look.colors[np.unique(corners[~iris])], axis=0) if (~iris).any() else None
+        for piece, mask, color in (
+            (name, ~iris, sclera),
+            (f"{name}_iris", iris & ~pupil, look.iris_colors[np.unique(corners[iris])].mean(axis=0)),
+            (f"{name}_pupil", pupil, PUPIL),
+        ):
+            if mask.any():
+                pieces.append((piece, face_ids[mask], rgb(color)))
+    return pieces
 
 
 def check_port(host: str, port: int) -> None:
@@ -102,6 +156,11 @@ def _viser():
     except ImportError as error:
         raise MissingExtraError(f"the viewer needs viser ({error}); pip install 'mimetic[view]'") from None
     return viser
+
+
+def _escape(text: str) -> str:
+    """``text`` shown literally in markdown (a file name with underscores, a ``<`` in a message)."""
+    return re.sub(r"([\\`*_{}\[\]<>#|])", r"\\\1", text)
 
 
 def _label(name: str) -> str:
@@ -182,7 +241,7 @@ class Viewer:
 
     def _error_page(self) -> None:
         self.server.gui.add_markdown(
-            f"### Cannot open `{self.source.name}`\n\n{self.error}\n\n"
+            f"### Cannot open `{self.source.name}`\n\n{_escape(self.error)}\n\n"
             "Start `mimetic view` again with a `.mrig` rig (from `mimetic head --rig` or `mimetic rig`) "
             "or a mesh file."
         )
@@ -226,24 +285,16 @@ class Viewer:
         return f"**{what}**: {n:,} vertices · engine {self.engine} · pose {self.last_update_ms:.1f} ms"
 
     def _add_meshes(self) -> None:
+        from mimetic.render.appearance import surface
+        from mimetic.render.raster import ALBEDO
+        from mimetic.view.look import rig_look
+
         scene, mesh = self.server.scene, self.mesh
-        parts = dict(mesh.parts)
-        covered = np.zeros(mesh.n_faces, bool)
-        for faces in parts.values():
-            covered[faces] = True
-        if not covered.all():
-            parts["surface"] = np.flatnonzero(~covered)
-        for name, face_ids in parts.items():
-            if len(face_ids) == 0:
-                continue
-            faces = mesh.faces[face_ids]
-            used, local = np.unique(faces, return_inverse=True)
+        look = rig_look(self.rig) if self.rig is not None else surface(mesh, ALBEDO)
+        for name, face_ids, color in display_pieces(mesh, look):
+            used, local = np.unique(mesh.faces[face_ids], return_inverse=True)
             handle = scene.add_mesh_simple(
-                f"/head/part/{name}",
-                self.vertices[used],
-                local.reshape(-1, 3),
-                color=PART_COLORS.get(name, PART_COLORS["skin"]),
-                side="double",
+                f"/head/part/{name}", self.vertices[used], local.reshape(-1, 3), color=color, side="double"
             )
             self.parts.append((used, handle))
         self.wireframe = scene.add_mesh_simple(
@@ -265,7 +316,7 @@ class Viewer:
         low, high = shown.min(axis=0), shown.max(axis=0)
         centre, size = (low + high) / 2, float((high - low).max())
         with client.atomic():  # position first: setting it moves look_at along
-            client.camera.position = centre + np.array([0.0, 0.0, high[2] - centre[2] + 0.75 * size])
+            client.camera.position = centre + np.array([0.0, 0.0, high[2] - centre[2] + 0.55 * size])
             client.camera.look_at = centre
             client.camera.up = (0.0, 1.0, 0.0)
 
