@@ -1331,6 +1331,7 @@ def demo(
     stdout.print(table)
     for note in result.notes:
         stdout.print(f"note: {note}")
+    stdout.print(f"play with it: mimetic view {result.out_dir / 'default.mrig'}")
 
 
 # --------------------------------------------------------------------------- batch

@@ -173,14 +173,13 @@ class Timeline:
         self.session = session
         self.keys: dict[float, np.ndarray] = {}
         self.loaded: KeyframeClip | None = None
-        self.audio: Path | None = None
 
-    def load(self, clip: KeyframeClip, audio: Path | None = None) -> None:
+    def load(self, clip: KeyframeClip) -> None:
         """Play ``clip`` (its channels must be the rig's, or a subset); keys are cleared."""
         unknown = [c for c in clip.channels if c not in self.session.index]
         if unknown:
             raise KeyError(f"the clip drives channels the rig does not have: {', '.join(unknown[:5])}")
-        self.loaded, self.keys, self.audio = clip, {}, audio
+        self.loaded, self.keys = clip, {}
 
     def set_key(self, time_s: float, pose: np.ndarray) -> None:
         """Key ``pose`` (c,) at ``time_s``; on a loaded clip, every channel that differs there is
@@ -203,7 +202,7 @@ class Timeline:
         return bool(near)
 
     def clear(self) -> None:
-        self.keys, self.loaded, self.audio = {}, None, None
+        self.keys, self.loaded = {}, None
 
     def clip(self) -> KeyframeClip | None:
         """The clip that plays: the loaded one, or one through the keys (None with no keys)."""
@@ -262,7 +261,8 @@ class Deformers:
         return name in self._ready
 
     def prepare(self, name: str, progress: Callable[[int, int], None] | None = None) -> None:
-        """Build engine ``name`` (and bake it when it is posed by its basis); seconds for fem/tissue."""
+        """Build engine ``name`` (and bake it when it is posed by its basis): instant for wire and
+        vector, about 10 s for fem, 30–100 s for tissue (benchmarks/bench_view.py)."""
         if name not in self.engines:
             raise KeyError(f"unknown engine {name!r}; choose one of {', '.join(self.engines)}")
         with self._lock:

@@ -63,6 +63,10 @@ MAX_PAINTED_COLORS = 6
 MAIN_COLOR_SHARE = 0.8
 """A part whose main colour covers this share of its faces is drawn in one colour."""
 
+PREPARE_NOTE = {"fem": "about 10 s", "tissue": "half a minute to two minutes (it is baked)"}
+"""How long an engine takes to prepare, as the page says (benchmarks/bench_view.py: fem 9 s on the
+default head and 14 s on ICT; tissue 29 s and 100 s)."""
+
 SLIDER_STEPS = 200
 """Steps across a slider's range."""
 
@@ -206,6 +210,7 @@ class Viewer:
         self.last_update_ms = 0.0
         self.vertices: np.ndarray | None = None
         self.pose: np.ndarray | None = None
+        self.audio: tuple[bytes, str] | None = None  # the timeline's sound and its MIME type
         try:
             self._load()
         except MimeticError as error:
@@ -452,7 +457,7 @@ class Viewer:
         play = gui.add_button("Play")
         play.on_click(lambda _: self._play())
         stop = gui.add_button("Stop")
-        stop.on_click(lambda _: self._playing.clear())
+        stop.on_click(lambda _: self._stop())
         self.loop = gui.add_checkbox("Loop", False)
         upload = gui.add_upload_button("Load clip (JSON)", mime_type="application/json")
         upload.on_upload(lambda event: self._load_clip(event.target.value.content))
@@ -529,6 +534,7 @@ class Viewer:
         self.pose = pose
         self.vertices = self.deformers.vertices(self.engine, pose)
         self._send_vertices()
+        self.server.flush()  # send now, not at viser's next 1/60 s window (12–16 ms sooner)
         self.last_update_ms = 1e3 * (time.perf_counter() - start)
         self.status.content = self._status_text()
 
@@ -553,7 +559,8 @@ class Viewer:
             self.engine = name
             self._refresh()
             return
-        notes = self._notify(f"Preparing the {name} engine", "This takes a few seconds, once.", loading=True)
+        wait = PREPARE_NOTE.get(name, "a few seconds")
+        notes = self._notify(f"Preparing the {name} engine", f"This takes {wait}, once.", loading=True)
 
         def work() -> None:
             try:
@@ -613,6 +620,7 @@ class Viewer:
         with self._lock:
             self._playing.clear()
             self.timeline.clear()
+            self.audio = None
             self.player.content = ""
             self._timeline_changed()
 
@@ -657,7 +665,14 @@ class Viewer:
     def _player_html(self, *, autoplay: bool, start_s: float = 0.0) -> str:
         data, kind = self.audio
         source = f"data:{kind};base64,{base64.b64encode(data).decode()}#t={start_s:.3f}"
-        return f'<audio controls {"autoplay" if autoplay else ""} src="{source}"></audio>'
+        seek = f'onloadedmetadata="this.currentTime={start_s:.3f}"'  # where #t= is not honoured
+        return f'<audio controls {"autoplay" if autoplay else ""} {seek} src="{source}"></audio>'
+
+    def _stop(self) -> None:
+        """Stop playback and its sound (the player is replaced by a paused one)."""
+        self._playing.clear()
+        if self.audio is not None:
+            self.player.content = self._player_html(autoplay=False)
 
     def _scrubbed(self, event) -> None:
         if self._syncing or self._playing.is_set():
@@ -677,7 +692,7 @@ class Viewer:
         first = round(self.time.value * FPS)
         first = first if first < len(frames) - 1 else 0
         self._playing.set()
-        if getattr(self, "audio", None) is not None:
+        if self.audio is not None:
             self.player.content = self._player_html(autoplay=True, start_s=first / FPS)
 
         def run() -> None:
