@@ -58,6 +58,15 @@ def page(viewer) -> str:
         return response.read().decode()
 
 
+def test_without_the_extra_the_viewer_says_what_to_install(monkeypatch, tmp_path):
+    from mimetic.errors import MissingExtraError
+    from mimetic.view import web
+
+    monkeypatch.setitem(sys.modules, "viser", None)  # import viser fails
+    with pytest.raises(MissingExtraError, match=r"pip install 'mimetic\[view\]'"):
+        web.start(tmp_path / "any.mrig", port=0)
+
+
 def test_channel_groups_follow_the_thesis_tab(web, rig):
     groups = {name: web.channel_group(name) for name in rig.channel_names}
     assert groups["frontalis_inner_L"] == "Brows and eyes"
