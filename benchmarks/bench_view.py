@@ -69,11 +69,12 @@ import numpy as np
 import websockets.asyncio.connection
 
 from bench_basis import table
+from bench_capture import Contention
 from mimetic.engines import ENGINES
 from mimetic.head.model import make_head
 from mimetic.rig.format import save_rig
 from mimetic.rig.recipe import build_rig
-from mimetic.testing import ict_folder, ict_landmarks, load_ict
+from mimetic.testing import CHROMIUM, CHROMIUM_ARGS, ict_folder, ict_landmarks, load_ict
 from mimetic.view.session import BAKED_ENGINES, Deformers
 from mimetic.view.web import Viewer, start
 
@@ -95,15 +96,6 @@ GAP_S = 0.12
 (waiting for a message) when a move comes, as when a user drags a slider after a pause."""
 CALIBRATIONS = 15
 """Round trips to the client worker that map its clock to ``perf_counter`` (the fastest is used)."""
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
 VIEWPORT = {"width": 400, "height": 300}
 """Small: the page renders with SwiftShader (no GPU) on the same two cores as the server."""
 INIT_SCRIPT = """
@@ -198,23 +190,14 @@ def descendants_cpu() -> float:
     return total
 
 
-class Load:
+class Load(Contention):
     """How busy the cores were since ``start``: this process, the processes it started (the browser)
-    and the others (``/proc/stat``; bench_capture's ``Contention`` with the browser told apart)."""
-
-    def __init__(self) -> None:
-        self.start = self._sample()
+    and the others (bench_capture's ``Contention`` with the browser told apart)."""
 
     @staticmethod
     def _sample() -> tuple[float, ...] | None:
-        try:
-            with open("/proc/stat") as file:
-                ticks = [int(n) for n in file.readline().split()[1:]]
-        except OSError:
-            return None
-        hz = os.sysconf("SC_CLK_TCK")
-        own = os.times()
-        return sum(ticks) / hz, (ticks[3] + ticks[4]) / hz, own.user + own.system, descendants_cpu()
+        base = Contention._sample()
+        return None if base is None else (*base, descendants_cpu())
 
     def note(self) -> str:
         end = self._sample()
@@ -325,7 +308,7 @@ class Browser:
 
     def __init__(self, playwright, port: int, threshold: int) -> None:
         self.threshold = threshold
-        self.browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        self.browser = playwright.chromium.launch(executable_path=CHROMIUM, args=list(CHROMIUM_ARGS))
         self.page = self.browser.new_page(viewport=VIEWPORT)
         self.page.add_init_script(INIT_SCRIPT)
         self.page.goto(f"http://127.0.0.1:{port}/")

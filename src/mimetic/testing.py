@@ -272,6 +272,19 @@ def require_shared_data(relative: str = "") -> Path:
     return path
 
 
+CHROMIUM = "/usr/bin/chromium"
+"""Debian's Chromium (``apt-get install chromium``; ``.ci/run`` installs it): browser tests and
+benchmarks drive it with Playwright (``executable_path``), never a downloaded browser."""
+CHROMIUM_ARGS = (
+    "--no-sandbox",  # CI runs as root
+    "--disable-gpu",
+    "--disable-background-networking",  # the machine's closed network refuses Chromium's own calls
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+)
+
+
 def require_extra(module: str, extra: str):
     """``module``, from mimetic's optional ``extra`` (e.g. "pocketsphinx", "speech"); skips the test
     when it is not installed, fails it on CI (``CI=true``), where every extra is."""

@@ -1,5 +1,7 @@
-"""One local Dask cluster for the batch tests (2 worker processes, one thread each, as ``mimetic batch``
-starts it), so its workers warm up once; skipped without the ``[batch]`` extra, except on CI."""
+"""A local Dask cluster for each batch test module (2 worker processes, one thread each, as ``mimetic
+batch`` starts it), so its workers warm up once per module; skipped without the ``[batch]`` extra,
+except on CI. Not one for the session: an idle cluster's heartbeats take about a fifth of a core,
+and its scheduler shares the test process's interpreter, for the rest of the suite."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import pytest
 from mimetic.testing import require_extra
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def cluster():
     distributed = require_extra("distributed", "batch")
     from mimetic.batch.jobs import WORKER_THREADS
@@ -26,7 +28,7 @@ def cluster():
         yield local
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def client(cluster):
     import distributed
 

@@ -30,19 +30,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from mimetic.testing import require_extra, small_rig
+from mimetic.testing import CHROMIUM, CHROMIUM_ARGS, require_extra, small_rig
 
 ROOT = Path(__file__).resolve().parents[2]
 README_SHOT = ROOT / "docs" / "images" / "viewer.png"
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
 VIEWPORT = {"width": 1280, "height": 800}
 TIMEOUT_MS = 60_000  # two cores, software WebGL, maybe another job: be patient
 CHANGED = 24  # a pixel changed when a colour channel moved by more than this (of 255)
@@ -67,7 +58,7 @@ def browser() -> Iterator[object]:
         unavailable(f"{CHROMIUM} is not installed (apt-get install chromium)")
     with sync_api.sync_playwright() as playwright:
         try:
-            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=list(CHROMIUM_ARGS))
         except sync_api.Error as error:
             unavailable(f"cannot launch {CHROMIUM}: {error}")
         yield browser
