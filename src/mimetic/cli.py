@@ -1284,8 +1284,10 @@ def view(
     """
     import time
 
-    from mimetic.view.web import start
+    from mimetic.view.web import PREPARE_NOTE, start
 
+    if engine.value in PREPARE_NOTE:
+        stderr.print(f"preparing the {engine.value} engine: {PREPARE_NOTE[engine.value]}, once")
     for given, option in ((clip, "--clip"), (audio, "--audio")):
         if given is not None and not given.is_file():
             raise MimeticError(f"{option} {given}: no such file")
