@@ -12,7 +12,8 @@ geometric engine it replaces) and the real-time budget of a 30 fps frame (33.3 m
 setup times (volume, factorisation, basis, calibration) against the goals (fem ≤ 10 s on the default
 head, ≤ 30 s on ICT), peak memory of each engine's setup (``tracemalloc``), tissue steps/s and output
 frames/s (goal ≥ 30 at 10k nodes), how far a smile's skin differs from the geometric engines', and
-the solver choice: cholespy's CHOLMOD (used) against scipy's ``splu`` on the fem and tissue systems.
+the solver choice: ``engines.cholesky``'s nested-dissection SuperLU (the fem engine's) and cholespy's
+CHOLMOD (the tissue engine's) against scipy's ``splu`` on the fem and tissue systems.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from scipy.sparse.linalg import splu
 
 from bench_basis import print_table, round_robin
 from mimetic.engines import make_engine
-from mimetic.engines.cholesky import cholesky
+from mimetic.engines.cholesky import cholesky, nested_lu
 from mimetic.engines.fem import fem_deltas, prepare_fem
 from mimetic.engines.loads import muscle_loads
 from mimetic.engines.volume import build_volume
@@ -89,25 +90,32 @@ def peak_mib(fn):
         tracemalloc.stop()
 
 
-def solver_choice(system, label: str) -> None:
-    """cholespy's CHOLMOD (what the engines use) against scipy's splu in symmetric mode on ``system``."""
-    rhs = np.random.default_rng(0).normal(size=(system.shape[0], 3))
+def solver_choice(system, label: str, used: str, columns: int) -> None:
+    """The factorisations of ``engines.cholesky`` against scipy's ``splu`` (minimum-degree order,
+    symmetric mode) on ``system``: factorisation, and a solve of ``columns`` right-hand sides (the fem
+    engine solves one per muscle once; the tissue engine 3 per iteration). ``used``: the engine's."""
+    rhs = np.random.default_rng(0).normal(size=(system.shape[0], columns))
     chol, chol_factor_s = timed(lambda: cholesky(system))
+    nested, nested_factor_s = timed(lambda: nested_lu(system))
     lu, splu_factor_s = timed(
         lambda: splu(
             system.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
         )
     )
-    seconds = round_robin({"cholespy": (lambda: chol.solve(rhs), 3), "splu": (lambda: lu.solve(rhs), 3)}, 3)
-    print(f"solver ({label}, {system.shape[0]:,} unknowns, 3 right-hand sides):")
-    print_table(
-        [
-            ("cholespy factorisation (used)", chol_factor_s, "splu", splu_factor_s),
-            ("cholespy solve (used)", seconds["cholespy"], "splu", seconds["splu"]),
-            ("baseline: splu factorisation", splu_factor_s, "", None),
-            ("baseline: splu solve", seconds["splu"], "", None),
-        ]
-    )
+    solvers = {"cholespy": chol, "nested_lu": nested, "splu": lu}
+    seconds = round_robin({name: (lambda f=f: f.solve(rhs), 3) for name, f in solvers.items()}, 3)
+    factor_s = {"cholespy": chol_factor_s, "nested_lu": nested_factor_s, "splu": splu_factor_s}
+    print(f"solver ({label}, {system.shape[0]:,} unknowns, {columns} right-hand sides):")
+    rows = []
+    for name in ("nested_lu", "cholespy"):
+        tag = " (used)" if name == used else ""
+        rows.append((f"{name} factorisation{tag}", factor_s[name], "splu", splu_factor_s))
+        rows.append((f"{name} solve{tag}", seconds[name], "splu", seconds["splu"]))
+    rows += [
+        ("baseline: splu factorisation", splu_factor_s, "", None),
+        ("baseline: splu solve", seconds["splu"], "", None),
+    ]
+    print_table(rows)
 
 
 def bench_head(label: str, rig, rounds: int) -> None:
@@ -186,8 +194,8 @@ def bench_head(label: str, rig, rounds: int) -> None:
             f"max {diffs[0].max():.2f}; from vector by rms {np.sqrt(np.mean(diffs[1] ** 2)):.3f}, "
             f"max {diffs[1].max():.2f}"
         )
-    solver_choice(solver.K[solver.free][:, solver.free], f"{label}, fem")
-    solver_choice(tissue.model.global_matrix(), f"{label}, tissue")
+    solver_choice(solver.K[solver.free][:, solver.free], f"{label}, fem", "nested_lu", len(active))
+    solver_choice(tissue.model.global_matrix(), f"{label}, tissue", "cholespy", 3)
 
 
 def main() -> None:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from mimetic.engines.cholesky import Cholesky, cholesky
+from mimetic.engines.cholesky import NestedLU, nested_lu
 from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
 from mimetic.engines.volume import SPLIT_COUNTS, SPLITS, TissueVolume, build_volume, tet_volumes
@@ -140,7 +140,7 @@ class FemSolver:
 
     K: sp.csr_matrix
     free: np.ndarray
-    _factor: Cholesky
+    _factor: NestedLU
 
     def solve(self, forces: np.ndarray) -> np.ndarray:
         """Displacements (3N,) or (3N, c) for nodal forces ``forces`` (3N,) or (3N, c); pinned: 0."""
@@ -163,7 +163,7 @@ def prepare_fem(
     spring[2 * k + hanging] += LIP_ANCHOR * nodal[2 * k + hanging] / volume.depth[hanging] ** 2
     K = (K + sp.diags(np.repeat(spring, 3))).tocsr()
     free = np.flatnonzero(np.repeat(~volume.pinned, 3))
-    return FemSolver(K, free, cholesky(K[free][:, free]))
+    return FemSolver(K, free, nested_lu(K[free][:, free]))
 
 
 def fem_deltas(rig: Rig, volume: TissueVolume, solver: FemSolver) -> np.ndarray:

@@ -72,7 +72,7 @@ import numpy as np
 import scipy.sparse as sp
 from threadpoolctl import ThreadpoolController
 
-from mimetic.engines.cholesky import Cholesky, cholesky
+from mimetic.engines.cholesky import Cholesky, cholesky, nested_lu
 from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
 from mimetic.engines.projections import csr_times, prism_targets, spring_targets
@@ -646,9 +646,7 @@ def rest_stiffness(model: TissueModel) -> sp.csr_matrix:
     # prisms: vec(δF)[3 i + j] = Σ_a δx_a,i g_a,j, i.e. vec(δF) = D δx, D[(i, j), (a, k)] = δ_ik g_a,j
     D = np.einsum("ik,paj->pijak", np.eye(3), model.gradients).reshape(-1, 9, 18)
     swap = np.eye(9).reshape(3, 3, 3, 3).transpose(0, 1, 3, 2).reshape(9, 9)  # vec(δF) -> vec(δFᵀ)
-    hessian = model.shape_stiffness[:, None, None] * np.einsum(
-        "pba,bc,pcd->pad", D, 0.5 * (np.eye(9) + swap), D
-    )
+    hessian = model.shape_stiffness[:, None, None] * (np.swapaxes(D, 1, 2) @ (0.5 * (np.eye(9) + swap) @ D))
     trace = np.einsum("b,pbd->pd", np.eye(3).ravel(), D)  # (P, 18): tr δF = trace · δx
     hessian += (model.volume_stiffness / 3.0)[:, None, None] * np.einsum("pa,pb->pab", trace, trace)
     dof = (3 * model.prisms[:, :, None] + axes).reshape(-1, 18)
@@ -667,7 +665,7 @@ def muscle_responses(model: TissueModel, forces: sp.spmatrix) -> np.ndarray:
     ``forces`` (3N, a) newtons; the pinned nodes stay."""
     dof = (3 * model.free[:, None] + np.arange(3)).ravel()
     out = np.zeros(forces.shape)
-    out[dof] = cholesky(rest_stiffness(model)[dof][:, dof]).solve(forces.tocsr()[dof].toarray())
+    out[dof] = nested_lu(rest_stiffness(model)[dof][:, dof]).solve(forces.tocsr()[dof].toarray())
     return out
 
 
