@@ -1,6 +1,6 @@
 """Stress the tissue engine's dynamics (issue 12, item 7): long clips of random extreme activations.
 
-    python benchmarks/stress_physics.py [--quick] [--steps N] [--budget S] [--resolution R]
+    python benchmarks/stress_physics.py [--quick] [--steps N] [--budget S] [--resolution R] [--heads H,...]
 
 For each head (the default head, a random head, a fitted ICT head when the shared data is there, and
 the default head in millimetres) the tissue engine takes ``--steps`` BDF2 steps (default 10,000;
@@ -68,12 +68,21 @@ def millimetre_rig(head):
     return dataclasses.replace(rig, mesh=Mesh(m.vertices, m.faces, m.parts, m.colors, "mm"), units="mm")
 
 
-def heads(resolution: int):
-    """(label, rig or None, note) for each head; None when it cannot be built here."""
-    yield "default head", build_rig(make_head(resolution=resolution)), ""
-    yield "random head (seed 7)", build_rig(make_head(HeadParams.random(7), resolution=resolution)), ""
+HEADS = ("default", "random", "ict", "mm")
+"""The heads ``--heads`` chooses from: the default head, a random head, a fitted ICT head, the default
+head in millimetres."""
+
+
+def heads(resolution: int, chosen: tuple[str, ...] = HEADS):
+    """(label, rig or None, note) for each head ``chosen``; None when it cannot be built here."""
+    if "default" in chosen:
+        yield "default head", build_rig(make_head(resolution=resolution)), ""
+    if "random" in chosen:
+        yield "random head (seed 7)", build_rig(make_head(HeadParams.random(7), resolution=resolution)), ""
     folder = ict_folder()
-    if folder is None:
+    if "ict" not in chosen:
+        pass
+    elif folder is None:
         yield "ICT-FaceKit (fitted)", None, "skipped: ICT-FaceKit not in the shared data"
     else:
         from mimetic.fit.pipeline import rig_head
@@ -82,7 +91,8 @@ def heads(resolution: int):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             yield "ICT-FaceKit (fitted)", rig_head(neutral, ict_landmarks(neutral, meta)).rig, ""
-    yield "default head, mm", millimetre_rig(make_head(resolution=resolution)), ""
+    if "mm" in chosen:
+        yield "default head, mm", millimetre_rig(make_head(resolution=resolution)), ""
 
 
 class ExtremeClip:
@@ -209,7 +219,14 @@ def main() -> None:
         "--budget", type=float, default=None, help="seconds of stepping per head (0: no limit)"
     )
     parser.add_argument("--resolution", type=int, default=None, help="skin vertices of the generated heads")
+    parser.add_argument(
+        "--heads", default=",".join(HEADS), help=f"comma-separated, of {', '.join(HEADS)} (default: all)"
+    )
     args = parser.parse_args()
+    chosen = tuple(h.strip() for h in args.heads.split(",") if h.strip())
+    unknown = sorted(set(chosen) - set(HEADS))
+    if unknown:
+        parser.error(f"unknown head(s) {', '.join(unknown)}; choose from {', '.join(HEADS)}")
     steps = args.steps or (500 if args.quick else 10_000)
     budget = args.budget if args.budget is not None else (60.0 if args.quick else 150.0)
     resolution = args.resolution or (2_500 if args.quick else DEFAULT_RESOLUTION)
@@ -236,7 +253,7 @@ def main() -> None:
     )
     rows = []
     total = time.perf_counter()
-    for label, rig, note in heads(resolution):
+    for label, rig, note in heads(resolution, chosen):
         if rig is None:
             print(note)
             rows.append((label, "-", *["-"] * 12, note))

@@ -77,7 +77,7 @@ from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
 from mimetic.engines.projections import csr_times, prism_targets, spring_targets
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
-from mimetic.engines.volume import TissueVolume, build_volume
+from mimetic.engines.volume import TissueVolume, build_volume, triple_products
 from mimetic.errors import ActivationError, MimeticWarning
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig
@@ -252,14 +252,13 @@ def prism_volumes(nodes: np.ndarray, prisms: np.ndarray) -> np.ndarray:
     theorem over its two triangles and three quads, each quad taken as the mean of its two
     triangulations, so the volume does not depend on the order of the prism's nodes. Signed:
     positive when the top triangle, counter-clockwise, faces away from the bottom."""
-    p = nodes[prisms]  # (P, 6, 3)
-    top, bottom = p[:, :3], p[:, 3:]
-    total = np.einsum("pi,pi->p", top[:, 0], np.cross(top[:, 1], top[:, 2]))
-    total -= np.einsum("pi,pi->p", bottom[:, 0], np.cross(bottom[:, 1], bottom[:, 2]))
+    top = [nodes[prisms[:, i]] for i in range(3)]  # (P, 3) each
+    bottom = [nodes[prisms[:, i]] for i in range(3, 6)]
+    total = triple_products(*top) - triple_products(*bottom)
     for a, b in ((0, 1), (1, 2), (2, 0)):  # quad a, b, b', a' (outward with the top counter-clockwise)
-        q = (top[:, b], top[:, a], bottom[:, a], bottom[:, b])
+        q = (top[b], top[a], bottom[a], bottom[b])
         for i, j, m in ((0, 1, 2), (0, 2, 3), (0, 1, 3), (1, 2, 3)):  # both triangulations, halved
-            total += 0.5 * np.einsum("pi,pi->p", q[i], np.cross(q[j], q[m]))
+            total += 0.5 * triple_products(q[i], q[j], q[m])
     return total / 6.0
 
 
@@ -521,11 +520,11 @@ def _iterations(
     xf = x[free]
     rhs, phi = local(xf)
     steps, residuals, images = [], [], []
-    for _ in range(limit):
+    for iteration in range(limit):
         g = factor.solve(rhs)
         f = g - xf
         steps.append(float(np.sqrt(np.einsum("ni,ni->n", f, f).max())))
-        if steps[-1] < TOLERANCE_M:
+        if steps[-1] < TOLERANCE_M or iteration == limit - 1:  # the last: no local step to judge a mix
             xf = g
             break
         residuals.append(f.ravel())
