@@ -90,13 +90,14 @@ def peak_mib(fn):
         tracemalloc.stop()
 
 
-def solver_choice(system, label: str, used: str, columns: int) -> None:
+def solver_choice(system, label: str, used: str, columns: int, block: int) -> None:
     """The factorisations of ``engines.cholesky`` against scipy's ``splu`` (minimum-degree order,
     symmetric mode) on ``system``: factorisation, and a solve of ``columns`` right-hand sides (the fem
-    engine solves one per muscle once; the tissue engine 3 per iteration). ``used``: the engine's."""
+    engine solves one per muscle once; the tissue engine 3 per iteration); ``block`` rows per node
+    (3 in the fem system, 1 in the tissue's, whose x, y and z share it). ``used``: the engine's."""
     rhs = np.random.default_rng(0).normal(size=(system.shape[0], columns))
     chol, chol_factor_s = timed(lambda: cholesky(system))
-    nested, nested_factor_s = timed(lambda: nested_lu(system))
+    nested, nested_factor_s = timed(lambda: nested_lu(system, block))
     lu, splu_factor_s = timed(
         lambda: splu(
             system.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
@@ -194,8 +195,8 @@ def bench_head(label: str, rig, rounds: int) -> None:
             f"max {diffs[0].max():.2f}; from vector by rms {np.sqrt(np.mean(diffs[1] ** 2)):.3f}, "
             f"max {diffs[1].max():.2f}"
         )
-    solver_choice(solver.K[solver.free][:, solver.free], f"{label}, fem", "nested_lu", len(active))
-    solver_choice(tissue.model.global_matrix(), f"{label}, tissue", "cholespy", 3)
+    solver_choice(solver.K[solver.free][:, solver.free], f"{label}, fem", "nested_lu", len(active), 3)
+    solver_choice(tissue.model.global_matrix(), f"{label}, tissue", "cholespy", 3, 1)
 
 
 def main() -> None:
