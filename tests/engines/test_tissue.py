@@ -106,6 +106,17 @@ def test_internal_forces_obey_newtons_third_law():
     np.testing.assert_array_equal(x, before)
 
 
+def test_the_gathered_local_step_is_the_rows_projections_gathered():
+    m = model()
+    x = m.rest + 2e-3 * np.random.default_rng(4).standard_normal(m.rest.shape)  # some prisms inverted
+    projections, energy = T._local(m, m.A @ x)
+    out = np.full_like(x, np.nan)
+    gathered_energy = T._gathered_local(m, x, out)
+    expected = m.A.T @ (m.weights[:, None] * projections)
+    np.testing.assert_allclose(out, expected, rtol=0, atol=1e-12 * np.abs(expected).max())  # measured 1e-16
+    assert gathered_energy == pytest.approx(energy, rel=1e-12)
+
+
 def test_rest_stiffness_is_the_hessian_of_the_energy_at_rest():
     m = model()
     H = T.rest_stiffness(m)

@@ -68,6 +68,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 from threadpoolctl import ThreadpoolController
@@ -75,7 +76,7 @@ from threadpoolctl import ThreadpoolController
 from mimetic.engines.cholesky import Cholesky, cholesky, nested_lu
 from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
-from mimetic.engines.projections import csr_times, prism_targets, spring_targets
+from mimetic.engines.projections import gathered_targets, prism_targets, spring_targets
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.engines.volume import TissueVolume, build_volume, triple_products
 from mimetic.errors import ActivationError, MimeticWarning
@@ -218,10 +219,7 @@ class TissueModel:
     metres_per_unit: float
     A: sp.csr_matrix = field(repr=False)
     weights: np.ndarray = field(repr=False)
-    _free_rows: sp.csr_matrix = field(repr=False)  # A[:, free]
-    _gather: sp.csr_matrix = field(repr=False)  # A[:, free]ᵀ W: projections to the right-hand side
-    _offset: np.ndarray = field(repr=False)  # (R, 3) A[:, pinned] @ rest[pinned]
-    _pinned_pull: np.ndarray = field(repr=False)  # (f, 3) _gather @ _offset
+    _pinned_pull: np.ndarray = field(repr=False)  # (f, 3) A[:, free]ᵀ W A[:, pinned] rest[pinned]
     _matrix: sp.csc_matrix = field(repr=False)  # (f, f) A[:, free]ᵀ W A[:, free] + diag(h)
     _factors: dict = field(repr=False)  # inertia coefficient -> Cholesky factor
 
@@ -390,7 +388,6 @@ def prepare_tissue(
         p,
         len(contact),
     )
-    offset = A[:, np.flatnonzero(pinned)] @ rest[pinned]
     return TissueModel(
         **arrays,
         strain_limit=BIPHASIC_STRAIN,
@@ -398,10 +395,7 @@ def prepare_tissue(
         metres_per_unit=mpu,
         A=A,
         weights=weights,
-        _free_rows=free_rows,
-        _gather=gather,
-        _offset=offset,
-        _pinned_pull=gather @ offset,
+        _pinned_pull=gather @ (A[:, np.flatnonzero(pinned)] @ rest[pinned]),
         _matrix=(gather @ free_rows + sp.diags(restoration[free])).tocsc(),
         _factors={},
     )
@@ -429,13 +423,40 @@ def _local(model: TissueModel, ax: np.ndarray) -> tuple[np.ndarray, float]:
     f = np.ascontiguousarray(ax[prisms]).reshape(-1, 9)  # (P, 9): entry 3 j + i is F[i, j]
     energy += prism_targets(f, model.shape_stiffness, model.volume_stiffness, p[prisms].reshape(-1, 9))
 
-    y = ax[contact]
+    p[contact], contact_energy = _contact_targets(model, ax[contact])
+    return p, float(energy + contact_energy)
+
+
+def _contact_targets(model: TissueModel, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """The skull contact's projections (S, 3) of its nodes' positions ``y`` (S, 3) onto the outer side
+    of their planes, and its energy, joules."""
     height = np.minimum(
         np.einsum("si,si->s", y - model.contact_anchor, model.contact_normal) - model.contact_gap, 0.0
     )
-    p[contact] = y - height[:, None] * model.contact_normal
-    energy += 0.5 * (model.contact_stiffness @ height**2)
-    return p, float(energy)
+    return y - height[:, None] * model.contact_normal, 0.5 * float(model.contact_stiffness @ height**2)
+
+
+def _gathered_local(model: TissueModel, x: np.ndarray, out: np.ndarray) -> float:
+    """The local step gathered onto the nodes: ``Aᵀ W p(A x)`` (N, 3) into ``out`` for positions ``x``
+    (N, 3), without forming ``A x`` (``projections.gathered_targets``; the contact rows are the
+    contact nodes themselves); returns the constraints' energy (``_local``'s)."""
+    energy = gathered_targets(
+        x,
+        model.edges,
+        model.rest_lengths,
+        model.stiffness,
+        model.stiff_phase,
+        model.strain_limit,
+        model.prisms,
+        model.gradients,
+        model.shape_stiffness,
+        model.volume_stiffness,
+        out,
+        numba.get_num_threads(),
+    )
+    targets, contact_energy = _contact_targets(model, x[model.contact])
+    out[model.contact] += model.contact_stiffness[:, None] * targets  # contact nodes are distinct
+    return energy + contact_energy
 
 
 def project(model: TissueModel, ax: np.ndarray) -> np.ndarray:
@@ -514,11 +535,13 @@ def _iterations(
     diagonal = (model.restoration + inertia * model.mass)[free, None]
 
     known = constant - model._pinned_pull  # the right-hand side's constant part
+    positions, gathered = model.rest.copy(), np.empty_like(x)  # the pinned nodes at rest, as _pinned_pull
 
     def local(xf: np.ndarray) -> tuple[np.ndarray, float]:
-        p, constraints = _local(model, csr_times(model._free_rows, xf, model._offset))
+        positions[free] = xf
+        constraints = _gathered_local(model, positions, gathered)
         phi = constraints + np.einsum("fi,fi->", 0.5 * diagonal * xf - constant, xf)
-        return csr_times(model._gather, p, known), phi
+        return gathered[free] + known, phi
 
     xf = x[free]
     rhs, phi = local(xf)
