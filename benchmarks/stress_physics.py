@@ -48,6 +48,8 @@ NEEDLE = 1e-3
 their sign flips with any motion, so they are not counted as inverted."""
 RELEASE_S = 1.0
 """Seconds of all-zero activations after the clip."""
+PROGRESS = 1000
+"""Steps between progress lines (a 10,000-step run takes the better part of an hour per head)."""
 
 
 def millimetre_head(head):
@@ -180,6 +182,8 @@ def run(engine: TissueEngine, steps: int, budget: float, seed: int = 0) -> Stres
             out.inverted_prisms = max(out.inverted_prisms, prisms)
             out.steps_inverted += bool(tets or prisms)
             out.steps += 1
+            if out.steps % PROGRESS == 0:
+                print(f"    {out.steps} steps, {time.perf_counter() - start:.0f} s", flush=True)
         previous = target
         return True
 
