@@ -292,9 +292,11 @@ def test_tissue_engine_simulation_returns_to_rest_and_checks_its_input():
 
 def test_tissue_engine_lips_never_cross_in_library_expressions():
     """The upper lip's contact vertices stay above the lower lip's in expressions that work the
-    mouth, and no lip triangle turns over. (Known gap: in ``weeping``, ``joy`` and ``fear`` the
-    lower lip's thin tissue folds under the summed pull of its depressors.)"""
-    from mimetic.animate.expressions import expression_pose
+    mouth, and no lip triangle turns over in them. Over the whole library at most 16 of the 280 lip
+    triangles×expressions turn over (measured 14: ``weeping`` 8, ``fear``, ``fake_smile`` and
+    ``joyous_surprise`` 2 each, where several lip muscles pull at once; 32 when the loads were per
+    unit of skin area rather than of tissue volume, ``engines.loads``)."""
+    from mimetic.animate.expressions import expression_pose, load_library
     from mimetic.quality import lip_faces, triangle_flips
     from mimetic.testing import generated_face_faces
 
@@ -302,9 +304,14 @@ def test_tissue_engine_lips_never_cross_in_library_expressions():
     rig = e.rig
     lips = lip_faces(rig, generated_face_faces(small_head(None)))
     pairs = rig.anatomy.lip_contact
-    for expression in ("smile", "pucker", "anger", "surprise"):
+    flipped = 0
+    for expression in load_library().names:
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # and the equilibrium converges
             v = e.deform(expression_pose(rig, expression))
-        assert np.all(v[pairs[:, 0], 1] >= v[pairs[:, 1], 1] - 1e-9), expression
-        assert not triangle_flips(rig.mesh.vertices, v, lips).any(), expression
+        count = int(triangle_flips(rig.mesh.vertices, v, lips).sum())
+        if expression in ("smile", "pucker", "anger", "surprise"):
+            assert np.all(v[pairs[:, 0], 1] >= v[pairs[:, 1], 1] - 1e-9), expression
+            assert count == 0, expression
+        flipped += count
+    assert flipped <= 16

@@ -6,9 +6,14 @@ parallel and sphincter muscles do the same on the skin, with the sphincter pulli
 centre and pushing the lips forward. The vector engine's Waters fields (``vector.vector_deltas``:
 linear, sheet and sphincter zones, the reversed mentalis, the lips' gate and the lids' mask) have
 exactly that shape, so they are the force density here: a muscle's force on the fascia node under
-skin vertex ``i`` is its Waters motion at ``i`` times the skin area around ``i`` (so the load does
-not depend on the mesh's resolution). The forces are computed once on the rest geometry and are
-linear in the activations (``K q = F0 + Σ aᵢ Fᵢ``).
+skin vertex ``i`` is its Waters motion at ``i`` times the tissue under ``i`` (``tissue_columns``:
+the skin area around ``i`` times its depth), a force per unit volume, so the load depends neither
+on the mesh's resolution nor on how deep the tissue is. Where the volume cut the depth back (the
+mouth's corners, the inner lip) the tissue is as much weaker as it is thinner; a load per unit of
+skin area pulled that thin tissue out of line with its neighbours and turned its small triangles
+over (tissue engine, lip triangles flipped over the expression library: 273 → 155 on the default
+head, 1,219 → 825 on ICT; ``fem``: 23 → 18). The forces are computed once on the rest geometry and
+are linear in the activations (``K q = F0 + Σ aᵢ Fᵢ``).
 
 For the nonlinear tissue (``rollable=True``), where no bone lies behind the tissue (the lips,
 ``TissueVolume.pinned``) a load's inward component (along the tissue normal) is dropped: a muscle
@@ -42,6 +47,12 @@ def skin_areas(volume: TissueVolume) -> np.ndarray:
     p = volume.nodes[volume.triangles]
     area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
     return np.bincount(volume.triangles.ravel(), np.repeat(area / 3.0, 3), minlength=volume.n_skin)
+
+
+def tissue_columns(volume: TissueVolume) -> np.ndarray:
+    """Volume (k,) of the tissue column under each skin node: its ``skin_areas`` times its depth
+    (skin to skull), rig units cubed."""
+    return skin_areas(volume) * volume.depth
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,7 +101,7 @@ def muscle_loads(rig: Rig, volume: TissueVolume, *, rollable: bool = False) -> M
     motion = deltas.toarray().reshape(n, 3, c)
     k = volume.n_skin
     waters = motion[volume.surface]  # (k, 3, c) at the skin nodes
-    field = waters * skin_areas(volume)[:, None, None]
+    field = waters * tissue_columns(volume)[:, None, None]
     if rollable:
         hanging = ~volume.pinned[2 * k :]  # (k,) no bone behind: the lips (and the rims cut back)
         normal = volume.normals[hanging]  # (h, 3) outward
