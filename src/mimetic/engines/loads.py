@@ -6,14 +6,17 @@ parallel and sphincter muscles do the same on the skin, with the sphincter pulli
 centre and pushing the lips forward. The vector engine's Waters fields (``vector.vector_deltas``:
 linear, sheet and sphincter zones, the reversed mentalis, the lips' gate and the lids' mask) have
 exactly that shape, so they are the force density here: a muscle's force on the fascia node under
-skin vertex ``i`` is its Waters motion at ``i`` times the tissue under ``i`` (``tissue_columns``:
-the skin area around ``i`` times its depth), a force per unit volume, so the load depends neither
-on the mesh's resolution nor on how deep the tissue is. Where the volume cut the depth back (the
-mouth's corners, the inner lip) the tissue is as much weaker as it is thinner; a load per unit of
-skin area pulled that thin tissue out of line with its neighbours and turned its small triangles
-over (tissue engine, lip triangles flipped over the expression library: 273 → 155 on the default
-head, 1,219 → 825 on ICT; ``fem``: 23 → 18). The forces are computed once on the rest geometry and
-are linear in the activations (``K q = F0 + Σ aᵢ Fᵢ``).
+skin vertex ``i`` is its Waters motion at ``i`` times the skin area around ``i`` (so the load does
+not depend on the mesh's resolution). The forces are computed once on the rest geometry and are
+linear in the activations (``K q = F0 + Σ aᵢ Fᵢ``).
+
+For the nonlinear tissue (``per_volume=True``) the field is a force per unit volume instead: times
+the tissue column under ``i`` (``tissue_columns``: the skin area around ``i`` times its depth).
+Where the volume cut the depth back (the mouth's corners, the inner lip) that tissue is as much
+weaker as it is thinner; a load per unit of skin area pulled it out of line with its neighbours and
+turned its small triangles over (lip triangles flipped over the expression library: 273 → 155 on
+the default head, 1,219 → 825 on ICT). ``fem`` keeps the load per unit area: per volume, its flips
+fell on the generated heads (23 → 18) but rose on ICT (2–15 → 8–43).
 
 For the nonlinear tissue (``rollable=True``), where no bone lies behind the tissue (the lips,
 ``TissueVolume.pinned``) a load's inward component (along the tissue normal) is dropped: a muscle
@@ -93,15 +96,18 @@ class MuscleLoads:
         return np.minimum(by_work, by_peak)
 
 
-def muscle_loads(rig: Rig, volume: TissueVolume, *, rollable: bool = False) -> MuscleLoads:
+def muscle_loads(
+    rig: Rig, volume: TissueVolume, *, rollable: bool = False, per_volume: bool = False
+) -> MuscleLoads:
     """Each channel's forces on the fascia of ``volume`` at full activation (``MuscleLoads``);
-    ``rollable``: the tissue can turn a lip (module docstring), so no load pushes into one."""
+    ``rollable``: the tissue can turn a lip (module docstring), so no load pushes into one;
+    ``per_volume``: the Waters field is a force per unit volume of tissue, not of skin area."""
     deltas = vector_deltas(rig).tocsc()  # (3n, c) on rig vertices
     n, c = rig.n_vertices, len(rig.channels)
     motion = deltas.toarray().reshape(n, 3, c)
     k = volume.n_skin
     waters = motion[volume.surface]  # (k, 3, c) at the skin nodes
-    field = waters * tissue_columns(volume)[:, None, None]
+    field = waters * (tissue_columns(volume) if per_volume else skin_areas(volume))[:, None, None]
     if rollable:
         hanging = ~volume.pinned[2 * k :]  # (k,) no bone behind: the lips (and the rims cut back)
         normal = volume.normals[hanging]  # (h, 3) outward

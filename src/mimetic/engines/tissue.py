@@ -36,7 +36,8 @@ Model (Lee et al. §3; values are module constants):
 * **Nodal restoration** ``h`` (§3.8): a zero-length spring to rest on every node, so weak that a
   node alone on it would swing at ``RESTORATION_HZ`` (it only makes a floating piece well posed).
 * **Bone**: the volume's pinned skull nodes are fixed.
-* **Muscles**: ``loads @ activations`` as nodal forces on the fascia. Each muscle's load is scaled
+* **Muscles**: ``loads @ activations`` as nodal forces on the fascia, per unit volume of tissue
+  (``engines.loads``: thin tissue is pulled no harder than it can follow). Each muscle's load is scaled
   once (``MuscleLoads.calibration``) from its response in the linearised tissue at rest
   (``rest_stiffness``; one solve per muscle), so that it does the vector engine's work on the skin,
   or moves no skin farther than the vector engine's muscle does.
@@ -732,7 +733,7 @@ class TissueEngine:
             skull_contact=skull_contact,
             damping=damping,
         )
-        loads = muscle_loads(rig, self.volume, rollable=True)
+        loads = muscle_loads(rig, self.volume, rollable=True, per_volume=True)
         self.muscles = loads.active  # (a,) channel indices
         forces = loads.forces[:, self.muscles].tocsc()  # (3N, a), unscaled
         linear = muscle_responses(self.model, forces)  # (3N, a) m
