@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import warnings
 from functools import cache
 
 import numpy as np
 import pytest
 
 from mimetic.engines import ENGINES, make_engine
-from mimetic.engines.bake import bake, channel_extent, random_poses
+from mimetic.engines.bake import RIGID, bake, channel_extent, random_poses
 from mimetic.engines.basis import evaluate_basis
+from mimetic.errors import MimeticWarning
 from mimetic.testing import small_rig
 
 
@@ -93,3 +95,35 @@ def test_evaluate_rigid_turns_the_head_as_the_engine_does(rig, engine):
     turned = evaluate_rigid(rig, basis, pose)
     np.testing.assert_allclose(turned, engine.deform(pose), atol=1e-9)
     assert np.abs(turned - evaluate_basis(basis, pose)).max() > 1.0  # the basis alone does not turn
+
+
+class _WarningEngine:
+    """Wraps an engine; warns (``MimeticWarning``) on every pose that moves the jaw, as the tissue
+    engine does when an equilibrium stops short."""
+
+    def __init__(self, engine, jaw: int):
+        self.engine, self.rig, self.jaw = engine, engine.rig, jaw
+
+    def deform(self, values):
+        if values[self.jaw] != 0.0:
+            warnings.warn(f"stopped short at jaw {values[self.jaw]:.3f}", MimeticWarning, stacklevel=2)
+        return self.engine.deform(values)
+
+
+def test_bake_gives_an_engines_warning_once_with_how_many_poses_gave_it(rig, engine):
+    jaw = rig.channel_index("jaw_open")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = bake(_WarningEngine(engine, jaw), correctives=0, samples=40, seed=1)
+    mine = [w for w in caught if issubclass(w.category, MimeticWarning)]
+    assert len(mine) == 1
+    moved = 1 + int(np.count_nonzero(random_poses(engine, 40, np.random.default_rng(1))[:, jaw]))
+    # the neutral, one pose per channel but the rigid ones (two for a central secant), the samples
+    poses = 1 + sum(
+        1 + channel_extent(ch.minimum, ch.maximum)[1] for ch in rig.channels if ch.name not in RIGID
+    )
+    poses += 40
+    assert f"({moved} of {poses} poses; the first shown)" in str(mine[0].message)
+    assert str(mine[0].message).startswith("bake: stopped short at jaw")
+    assert mine[0].filename == __file__  # points at the caller of bake
+    assert result.basis.deltas.shape[0] == len(rig.channels)

@@ -13,12 +13,16 @@ Correctives capture the strongest interactions: for a pair (i, j) at their extre
 ``C_ij = (deform(x_i + x_j) - deform(x_i) - deform(x_j) + neutral) / (x_i x_j)`` (the jaw rotating
 muscle-displaced lower lip skin, two muscles damping each other on a shared control point). The
 pairs with the largest effect are kept. ``bake`` reports the error of the basis against the
-engine over random poses, so users can judge the linearisation.
+engine over random poses, so users can judge the linearisation. Warnings the engine gives while it
+poses (the tissue engine's equilibrium stopping short of its tolerance) come once per kind, with how
+many of the bake's poses gave them, not once per pose.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import combinations
 from typing import TYPE_CHECKING
@@ -82,6 +86,21 @@ def random_poses(engine: Engine, count: int, rng: np.random.Generator, density: 
     return values
 
 
+@contextmanager
+def _warnings_summarised(count: Callable[[], int]) -> Iterator[None]:
+    """Hold the warnings raised inside; then give one per category: how many there were, of the
+    ``count()`` poses, and the first one's message."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    by_category: dict[type[Warning], list[str]] = {}
+    for w in caught:
+        by_category.setdefault(w.category, []).append(str(w.message))
+    for category, messages in by_category.items():
+        more = f" ({len(messages)} of {count()} poses; the first shown)" if len(messages) > 1 else ""
+        warnings.warn(f"bake: {messages[0]}{more}", category, stacklevel=4)
+
+
 def bake(
     engine: Engine,
     *,
@@ -96,10 +115,30 @@ def bake(
     so it bakes without correctives and checks 4 poses), else to 24 and 32."""
     correctives = getattr(engine, "bake_correctives", 24) if correctives is None else correctives
     samples = getattr(engine, "bake_samples", 32) if samples is None else samples
+    poses = 0
+
+    def deform(values: np.ndarray) -> np.ndarray:
+        nonlocal poses
+        poses += 1
+        return engine.deform(values)
+
+    with _warnings_summarised(lambda: poses):
+        return _bake(engine, deform, correctives, samples, seed, progress)
+
+
+def _bake(
+    engine: Engine,
+    deform: Callable[[np.ndarray], np.ndarray],
+    correctives: int,
+    samples: int,
+    seed: int,
+    progress: Progress | None,
+) -> BakeResult:
+    """``bake`` with ``deform`` (``engine.deform``) for every pose."""
     rig = engine.rig
     c = len(rig.channels)
     zero = np.array([ch.default for ch in rig.channels])
-    neutral = engine.deform(zero)
+    neutral = deform(zero)
     amplitude = np.zeros(c)
     single = {}
     deltas = np.zeros((c, rig.n_vertices, 3))
@@ -114,11 +153,11 @@ def bake(
         amplitude[j] = x
         plus = zero.copy()
         plus[j] = x
-        single[j] = engine.deform(plus)
+        single[j] = deform(plus)
         if central:
             minus = zero.copy()
             minus[j] = -x
-            deltas[j] = (single[j] - engine.deform(minus)) / (2 * x)
+            deltas[j] = (single[j] - deform(minus)) / (2 * x)
         else:
             deltas[j] = (single[j] - neutral) / x
         done += 1
@@ -132,7 +171,7 @@ def bake(
         for i, j in candidates:
             both = zero.copy()
             both[i], both[j] = amplitude[i], amplitude[j]
-            delta = (engine.deform(both) - single[i] - single[j] + neutral) / (amplitude[i] * amplitude[j])
+            delta = (deform(both) - single[i] - single[j] + neutral) / (amplitude[i] * amplitude[j])
             strength.append((np.abs(delta).max() * abs(amplitude[i] * amplitude[j]), i, j, delta))
         strength.sort(key=lambda s: -s[0])
         names = rig.channel_names
@@ -143,7 +182,7 @@ def bake(
     fitted, fitted_linear = evaluate_basis(basis, poses), evaluate_basis(linear, poses)  # (samples, n, 3)
     errors, errors_linear = [], []
     for pose, fit, fit_linear in zip(poses, fitted, fitted_linear, strict=True):
-        truth = engine.deform(pose)
+        truth = deform(pose)
         errors.append(np.linalg.norm(fit - truth, axis=1))
         errors_linear.append(np.linalg.norm(fit_linear - truth, axis=1))
         done += 1
