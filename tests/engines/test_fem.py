@@ -12,9 +12,11 @@ import scipy.sparse.linalg as sla
 from scipy.spatial import cKDTree
 
 from mimetic.engines import make_engine
+from mimetic.engines import volume as volume_module
 from mimetic.engines.fem import POISSON, FemEngine, prepare_fem, stiffness_matrix
 from mimetic.engines.loads import muscle_loads, skin_areas
 from mimetic.engines.volume import FASCIA_DEPTH, TissueVolume, build_volume, prism_tets, tet_volumes
+from mimetic.errors import MimeticError
 from mimetic.rig.activations import pose
 from mimetic.testing import small_rig
 
@@ -224,6 +226,17 @@ def test_the_tissue_volume_is_mirror_symmetric_on_a_symmetric_head():
     gap = cKDTree(nodes).query(nodes * [-1.0, 1.0, 1.0])[0]
     # nothing depends on the mouth cavity's or the eyes' triangles, which are not mirror-symmetric
     assert gap.max() < 1e-9 * rig.scale
+
+
+@pytest.mark.parametrize("name", ["fem", "tissue"])
+def test_a_skin_too_big_for_the_physical_engines_is_refused_with_what_to_do(name, monkeypatch):
+    rig = small_rig()
+    nodes = build_volume(rig).n_nodes
+    monkeypatch.setattr(volume_module, "MAX_NODES", nodes - 1)
+    with pytest.raises(MimeticError, match=rf"{nodes:,} nodes.*at most {nodes - 1:,}.*Decimate the mesh"):
+        make_engine(rig, name)
+    monkeypatch.setattr(volume_module, "MAX_NODES", nodes)
+    assert build_volume(rig).n_nodes == nodes  # at the limit it builds
 
 
 def test_the_mouth_lining_follows_the_lips_it_continues():

@@ -57,6 +57,9 @@ RIM_DEPTH = 0.5
 eyes, a thin lip) the skull node is not on bone: it hangs (``pinned`` is False)."""
 FACING = 0.3
 """Skin counts as another surface where its normal and the point's have a dot product below −this."""
+MAX_NODES = 300_000
+"""Most nodes of a volume (three per skin vertex): the tissue engine's setup takes about 27 kB a node
+(1.5 GiB for ICT-FaceKit's 57,501), so this bounds it near 8 GiB; a bigger scan is decimated first."""
 NEIGHBOURS = 12
 """Nearest mesh vertices checked around a skull node (``_depths``)."""
 MIN_THICKNESS_REL = 0.008
@@ -269,7 +272,8 @@ def _depths(
 def build_volume(rig: Rig) -> TissueVolume:
     """The layered tissue volume (``TissueVolume``) under ``rig``'s skin (module docstring).
 
-    Raises ``MimeticError`` when the rig has no skin triangles.
+    Raises ``MimeticError`` when the rig has no skin triangles or more than ``MAX_NODES // 3`` skin
+    vertices.
     """
     weld = find_weld(rig.mesh)
     welded = weld.mesh
@@ -284,6 +288,13 @@ def build_volume(rig: Rig) -> TissueVolume:
         raise MimeticError("the rig has no skin triangles to lay tissue under; rebuild it with `mimetic rig`")
     used = np.unique(faces)
     k = len(used)
+    if 3 * k > MAX_NODES:
+        raise MimeticError(
+            f"the rig's skin has {k:,} vertices, a tissue volume of {3 * k:,} nodes; the physical engines "
+            f"(fem, tissue) take at most {MAX_NODES:,} nodes ({MAX_NODES // 3:,} skin vertices), their "
+            "memory and time grow with it. Decimate the mesh before `mimetic rig` (trimesh's "
+            "simplify_quadric_decimation, Blender's Decimate modifier), or use the wire or vector engine"
+        )
     node_of = np.full(len(welded.vertices), -1, dtype=np.int64)
     node_of[used] = np.arange(k)
     tri = node_of[faces]  # (m, 3) skin-node triangles
