@@ -58,8 +58,9 @@ eyes, a thin lip) the skull node is not on bone: it hangs (``pinned`` is False).
 FACING = 0.3
 """Skin counts as another surface where its normal and the point's have a dot product below −this."""
 MAX_NODES = 300_000
-"""Most nodes of a volume (three per skin vertex): the tissue engine's setup takes about 27 kB a node
-(1.5 GiB for ICT-FaceKit's 57,501), so this bounds it near 8 GiB; a bigger scan is decimated first."""
+"""Most nodes of a volume (three per skin vertex). Setup grows with them: 258,834 nodes (a generated
+head of 95,000 skin vertices) took 59 s and 4.4 GiB for ``fem``, then 67 s and a peak of 10.2 GiB
+with ``tissue`` beside it; a bigger scan is decimated first."""
 NEIGHBOURS = 12
 """Nearest mesh vertices checked around a skull node (``_depths``)."""
 MIN_THICKNESS_REL = 0.008
