@@ -11,7 +11,8 @@ system's back-substitution, what a basis saves); for the tissue engine, the vect
 geometric engine it replaces) and the real-time budget of a 30 fps frame (33.3 ms). Also per head:
 setup times (volume, factorisation, basis, calibration) against the goals (fem ≤ 10 s on the default
 head, ≤ 30 s on ICT), peak memory of each engine's setup (``tracemalloc``), tissue steps/s and output
-frames/s (goal ≥ 30 at 10k nodes), how far a smile's skin differs from the geometric engines', and
+frames/s (goal ≥ 30 at 10k nodes), how far a smile's skin differs from the geometric engines', what
+the physics adds (the cheeks' outward bulge in the smile and the lips' in a pucker, every engine), and
 the solver choice: ``engines.cholesky``'s nested-dissection SuperLU (the fem engine's) and cholespy's
 CHOLMOD (the tissue engine's) against scipy's ``splu`` on the fem and tissue systems.
 """
@@ -28,12 +29,14 @@ import numpy as np
 from scipy.sparse.linalg import splu
 
 from bench_basis import print_table, round_robin
+from bench_rig import print_table as print_titled
 from mimetic.engines import make_engine
 from mimetic.engines.cholesky import cholesky, nested_lu
 from mimetic.engines.fem import fem_deltas, prepare_fem
 from mimetic.engines.loads import muscle_loads
 from mimetic.engines.volume import build_volume
 from mimetic.head.model import make_head
+from mimetic.mesh.geometry import vertex_normals
 from mimetic.rig.activations import pose
 from mimetic.rig.recipe import build_rig
 from mimetic.testing import ict_folder, ict_landmarks, load_ict
@@ -55,6 +58,27 @@ SMILE = {
     "levator_labii_mid_R": 0.3,
     "jaw_open": 0.1,
 }
+PUCKER = {"orbicularis_oris": 1.0}
+"""The lips' sphincter alone: the lips squeezed together bulge forward."""
+BULGE_REGIONS = {"smile": ("cheek_L", "cheek_R"), "pucker": ("upper_lip", "lower_lip")}
+"""Where each pose's outward bulge is measured (the rig's regions)."""
+
+
+def bulges(rig, engines: dict) -> list[tuple[str, ...]]:
+    """Rows (pose, engine, mean, p95, max): each pose's skin motion along the rest normal (outward
+    positive, rig units) over its ``BULGE_REGIONS``: a smile's cheek bulk, a pucker's lip bulge."""
+    normals = vertex_normals(rig.mesh.vertices, rig.mesh.faces)
+    rows = []
+    for name, chosen in (("smile", SMILE), ("pucker", PUCKER)):
+        where = np.concatenate([rig.regions[r] for r in BULGE_REGIONS[name]])
+        values = pose(rig, chosen)
+        for engine_name, engine in engines.items():
+            moved = engine.deform(values)[where] - rig.mesh.vertices[where]
+            out = np.einsum("ij,ij->i", moved, normals[where])
+            rows.append(
+                (name, engine_name, *(f"{x:+.3f}" for x in (out.mean(), np.percentile(out, 95), out.max())))
+            )
+    return rows
 
 
 def timed(fn):
@@ -195,6 +219,13 @@ def bench_head(label: str, rig, rounds: int) -> None:
             f"max {diffs[0].max():.2f}; from vector by rms {np.sqrt(np.mean(diffs[1] ** 2)):.3f}, "
             f"max {diffs[1].max():.2f}"
         )
+    engines = {"wire": make_engine(rig, "wire"), "vector": vector, "fem": fem, "tissue": tissue}
+    print_titled(
+        f"what the physics adds: outward bulge along the rest normal, {rig.units}, of the smile over the "
+        "cheeks and of a pucker (orbicularis_oris 1) over the lips",
+        ("pose", "engine", "mean", "p95", "max"),
+        bulges(rig, engines),
+    )
     solver_choice(solver.K[solver.free][:, solver.free], f"{label}, fem", "nested_lu", len(active), 3)
     solver_choice(tissue.model.global_matrix(), f"{label}, tissue", "cholespy", 3, 1)
 
