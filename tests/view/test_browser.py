@@ -357,7 +357,8 @@ def test_view_click_on_nose_picks_landmark(open_page, rig, rig_path):
     nose = landmarks_on(rig, viewer.vertices, ("nose_tip",))
     x, y = project(viewer, page, nose)[0]
     page.mouse.click(x, y)
-    wait_for(lambda: viewer.picks.points)
+    # the server's click handler adds the pick, then moves the picker on: wait for both
+    wait_for(lambda: viewer.picks.points and viewer.landmark_choice.value != "eye_outer_corner_R")
     assert list(viewer.picks.points) == ["eye_outer_corner_R"], viewer.picks.points
     assert viewer.landmark_choice.value == "eye_inner_corner_R", "the picker did not move on"
     picked = viewer.picks.positions(viewer.vertices)["eye_outer_corner_R"]
