@@ -206,8 +206,8 @@ def bench_head(label: str, rig, rounds: int) -> None:
         f"tissue at 30 fps, {volume.n_nodes:,} nodes: {steps} step(s) per frame, {steps / dynamic:,.0f} "
         f"steps/s, {fps:,.1f} output frames/s ({verdict}){fem_verdict}"
     )
-    poses = {"wire": make_engine(rig, "wire").deform(values), "vector": vector.deform(values)}
-    poses.update(fem=fem.deform(values), tissue=tissue.deform(values))
+    engines = {"wire": make_engine(rig, "wire"), "vector": vector, "fem": fem, "tissue": tissue}
+    poses = {name: engine.deform(values) for name, engine in engines.items()}
     rest = rig.mesh.vertices
     moved = {name: np.linalg.norm(v - rest, axis=1) for name, v in poses.items()}
     print(f"the smile ({', '.join(SMILE)}): largest motion and difference from the geometric engines, cm")
@@ -219,7 +219,6 @@ def bench_head(label: str, rig, rounds: int) -> None:
             f"max {diffs[0].max():.2f}; from vector by rms {np.sqrt(np.mean(diffs[1] ** 2)):.3f}, "
             f"max {diffs[1].max():.2f}"
         )
-    engines = {"wire": make_engine(rig, "wire"), "vector": vector, "fem": fem, "tissue": tissue}
     print_titled(
         f"what the physics adds: outward bulge along the rest normal, {rig.units}, of the smile over the "
         "cheeks and of a pucker (orbicularis_oris 1) over the lips",
