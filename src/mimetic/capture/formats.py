@@ -129,6 +129,7 @@ def read_trajectories(
     path = Path(path)
     src = str(path)
     data = _read_bytes(path, src)
+    kind = "markers"
     if path.suffix.lower() == ".c3d" or (data[1:2] == b"P" and b"\0" in data[:512]):
         names, positions, confidence, file_fps, file_units = _parse_c3d(data, src)
         rate = _resolve_fps(file_fps, fps, src, origin="POINT:RATE", derived=False)
@@ -150,7 +151,13 @@ def read_trajectories(
                 origin = "time_s column" if derived else "'# fps' line"
                 rate = _resolve_fps(file_fps, fps, src, origin=origin, derived=derived)
     trajectories = Trajectories(
-        names, positions, rate, _resolve_units(file_units, units, src), confidence, src
+        names,
+        positions,
+        rate,
+        _resolve_units(file_units, units, src),
+        confidence,
+        src,
+        tracked=kind == "openface",
     )
     _check_seen(trajectories)
     log.debug(

@@ -9,7 +9,7 @@ rate, the length unit and a per-frame confidence. ``d`` is 3 for markers and lif
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -45,6 +45,12 @@ class Trajectories:
         which the tracker found no face).
     source : str
         Where the data came from (a path, "synthetic", …), for messages.
+    tracked : bool
+        The points are a face tracker's landmarks (a video's, OpenFace's), not markers on the skin:
+        a contour landmark (the jaw line, the face's oval) is where the face's outline is seen, and
+        slides over the skin as the head turns.
+    image_size : (2,) int or None
+        Width and height of the images the points were found in (pixels), when ``units`` is "px".
     """
 
     names: tuple[str, ...]
@@ -53,6 +59,8 @@ class Trajectories:
     units: str | None = None
     confidence: np.ndarray | None = None
     source: str = "trajectories"
+    tracked: bool = False
+    image_size: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         names = tuple(str(n) for n in self.names)
@@ -94,6 +102,8 @@ class Trajectories:
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "fps", float(self.fps))
         object.__setattr__(self, "confidence", confidence)
+        if self.image_size is not None:
+            object.__setattr__(self, "image_size", (int(self.image_size[0]), int(self.image_size[1])))
 
     @property
     def n_frames(self) -> int:
@@ -126,13 +136,9 @@ class Trajectories:
                 f"{self.source}: no point(s) {', '.join(missing[:5])}; it has {', '.join(self.names[:6])}, …"
             )
         columns = [index[n] for n in names]
-        return Trajectories(
-            tuple(names), self.positions[:, columns], self.fps, self.units, self.confidence, self.source
-        )
+        return replace(self, names=tuple(names), positions=self.positions[:, columns])
 
     def frames(self, start: int, stop: int | None = None) -> Trajectories:
         """Frames ``start:stop`` (Python slice semantics)."""
         keep = slice(start, stop)
-        return Trajectories(
-            self.names, self.positions[keep], self.fps, self.units, self.confidence[keep], self.source
-        )
+        return replace(self, positions=self.positions[keep], confidence=self.confidence[keep])

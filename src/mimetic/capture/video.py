@@ -1,10 +1,12 @@
 """Face landmarks tracked through a video with MediaPipe FaceMesh, and where they sit on a rig.
 
-``track_video(path)`` decodes a video with the ffmpeg of ``imageio-ffmpeg`` and runs MediaPipe
-FaceMesh in video mode (``mimetic.fit.detect.video_face_mesh``) on every frame, each frame gated
-by the FaceDetection short-range score as ``mimetic.fit.detect.detect_face`` gates one image.
-The result is a ``Trajectories`` of the 478 FaceMesh points ``mediapipe_0`` … ``mediapipe_477``
-(468 face points, then 2 x 5 iris points), d = 3, in pixels:
+``track_video(path)`` decodes a video with the ffmpeg binary of ``imageio-ffmpeg`` (run directly:
+upright by the video's display rotation, on a constant frame-rate grid by the frames' timestamps,
+scaled down to ``WORK_SIZE_PX`` when larger) and runs MediaPipe FaceMesh in video mode
+(``mimetic.fit.detect.video_face_mesh``) on every frame, each frame gated by the FaceDetection
+short-range score as ``mimetic.fit.detect.detect_face`` gates one image. The result is a
+``Trajectories`` of the 478 FaceMesh points ``mediapipe_0`` … ``mediapipe_477`` (468 face points,
+then 2 x 5 iris points), d = 3, in pixels of the video's frame as a player shows it:
 
 * x = FaceMesh's x · width: pixels right of the image's left edge;
 * y = -(FaceMesh's y · height): the image's top edge at 0, the rest of the image below it
@@ -22,13 +24,18 @@ Both need the optional extra ``mimetic[track]`` (mediapipe), imported on first u
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
+import re
+import subprocess
+import tempfile
 import time
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import closing
+from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 
 import imageio_ffmpeg
@@ -51,70 +58,221 @@ N_FACE_POINTS = 468
 """FaceMesh points on the face surface (0..467); 468..477 are the irises, inside the eyes."""
 MEDIAPIPE_NAMES = tuple(f"mediapipe_{k}" for k in range(N_LANDMARKS))
 """Names of the 478 tracked points, in FaceMesh's order."""
-FPS_TOLERANCE = 0.01  # a given fps this far (relative) from the file's own is warned about
-SHOW_FRAMES = 5  # frame numbers listed in the warning about frames without a face
+FPS_TOLERANCE = 0.01
+"""A given ``fps`` this far (relative) above the file's own rate is warned about: frames repeat."""
+SHOW_FRAMES = 5
+"""Frame numbers listed in a warning about frames (no face, a turned face, several faces)."""
+WORK_SIZE_PX = 1280
+"""Long side, in pixels, of the frames the face models see: ffmpeg scales a larger video down to it
+while decoding (a 3840 x 2160 video to 1280 x 720), and the points are scaled back to the video's
+own pixels. FaceMesh crops the face and resizes it to 192 x 192 anyway, so this loses nothing
+while the face is at least ~200 px tall in the smaller frame."""
+MAX_FACES = 2
+"""Faces FaceMesh looks for in each frame; the largest is tracked and the others are counted."""
+SAME_FACE_IOU = 0.5
+"""Two FaceMesh faces whose landmark boxes overlap more than this (intersection over union) are
+one face found twice, not two faces."""
+MAX_YAW_RAD = math.radians(50.0)
+"""A face turned further than this from the camera (left or right) is taken as seen in profile:
+its far half is hidden and FaceMesh guesses it, so the frame gets NaN points and confidence 0.
+On renders of the small rig FaceMesh's angle (``_yaw_rad``) follows the true one within 3° up to
+60°, then stays at 57-64° while the head turns on to 75°; from 80° FaceMesh finds no face, though
+FaceDetection still scores it about 0.7."""
+PROBE_TIMEOUT_S = 120.0
+"""Time ffmpeg may take to read a file's header before the file is reported as unreadable."""
+_NTSC_BASES = (24, 30, 48, 60, 120, 240)
+"""Rates ffmpeg prints rounded (29.97 for 30000/1001): snapped back to n·1000/1001."""
 
 
-def _last_line(error: BaseException) -> str:
-    """The last non-empty line of an error's message (ffmpeg's reason comes last)."""
-    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-    return lines[-1] if lines else type(error).__name__
+def _last_line(text: str) -> str:
+    """The last non-empty line of ffmpeg's messages (its reason comes last), "" when there is none."""
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[-1] if lines else ""
 
 
-def _open(path: Path) -> tuple[dict, Iterator[bytes]]:
-    """ffmpeg's metadata of the video at ``path`` and the generator of its RGB24 frames."""
-    reader = imageio_ffmpeg.read_frames(str(path), pix_fmt="rgb24")
-    try:
-        meta = next(reader)
-        width, height = (int(n) for n in meta["size"])
-    except (OSError, RuntimeError, StopIteration, KeyError, TypeError, ValueError) as error:
-        reader.close()
-        raise CaptureError(
-            f"{path}: ffmpeg cannot read a video from it ({_last_line(error)}); check that the file is a "
-            "complete video (MP4, MOV, AVI, MKV, WebM …) that plays in a video player"
-        ) from None
-    if width < 1 or height < 1:
-        reader.close()
-        raise CaptureError(f"{path}: ffmpeg reports a frame size of {width}×{height}; is it a video?")
-    return meta, reader
+@dataclass(frozen=True, slots=True)
+class _Stream:
+    """What ffmpeg says of a file's first video stream (``ffmpeg -i``'s header).
 
-
-def _frames(path: Path, reader: Iterator[bytes], width: int, height: int) -> Iterator[np.ndarray]:
-    """The frames of ``reader`` as read-only (height, width, 3) uint8 RGB arrays.
-
-    ffmpeg failing part-way (a damaged stream) is a ``CaptureError`` naming ``path``.
+    ``width`` and ``height`` are the stored (coded) frame's; ``rotation_deg`` the display
+    rotation (0 when none); ``fps`` the average frame rate and ``duration_s`` the container's
+    duration, each 0.0 when the header gives none.
     """
-    try:
-        for raw in reader:
-            yield np.frombuffer(raw, np.uint8).reshape(height, width, 3)
-    except RuntimeError as error:
+
+    index: int  # ffmpeg's stream number in the file, for -map 0:index
+    width: int
+    height: int
+    rotation_deg: float
+    fps: float
+    duration_s: float
+
+    @property
+    def display_size(self) -> tuple[int, int]:
+        """(width, height) of the frame as a player shows it: swapped by a quarter-turn rotation.
+
+        ffmpeg turns the frame by multiples of 90° with transpose (within 1°) and by any other
+        angle inside the same frame size; a mirror does not change the size.
+        """
+        turn = self.rotation_deg % 180.0
+        return (self.height, self.width) if abs(turn - 90.0) < 1.0 else (self.width, self.height)
+
+
+_STREAM = re.compile(r"^\s*Stream #0:(\d+)\S*: (\w+):(.*)$")
+_SIZE = re.compile(r"(?:^|[ ,])(\d+)x(\d+)(?=[ ,\[]|$)")
+_FPS = re.compile(r"(\d+(?:\.\d+)?)(k?) fps\b")
+_ROTATION = re.compile(r"display ?matrix: rotation of (-?\d+(?:\.\d+)?) degrees", re.IGNORECASE)
+_DURATION = re.compile(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)")
+
+
+def _parse_header(path: Path, text: str) -> _Stream:
+    """The first video stream (not a cover picture) of ``ffmpeg -i``'s header ``text``."""
+    if "Input #0" not in text:
         raise CaptureError(
-            f"{path}: ffmpeg stopped decoding the video ({_last_line(error)}); the file may be damaged "
-            "or cut short. Re-encode it (e.g. ffmpeg -i in.mp4 out.mp4) or pass max_frames to stop earlier."
+            f"{path}: ffmpeg cannot read a video from it ({_last_line(text) or 'no header'}); check that "
+            "the file is a complete video (MP4, MOV, AVI, MKV, WebM …) that plays in a video player"
+        )
+    blocks: list[tuple[int, str, list[str]]] = []  # (index, kind, [stream line, its metadata lines…])
+    current: list[str] | None = None
+    for line in text.splitlines():
+        found = _STREAM.match(line)
+        if found:
+            current = [found[3]]
+            blocks.append((int(found[1]), found[2], current))
+        elif current is not None and line.startswith("    "):  # the stream's metadata and side data
+            current.append(line)
+        else:
+            current = None
+    video = [(i, lines) for i, kind, lines in blocks if kind == "Video" and "(attached pic)" not in lines[0]]
+    if not video:
+        raise CaptureError(
+            f"{path}: ffmpeg finds no video stream in it (a sound or picture file?); pass a video"
+        )
+    index, lines = video[0]
+    size, fps = _SIZE.search(lines[0]), _FPS.search(lines[0])
+    width, height = (int(n) for n in size.groups()) if size else (0, 0)
+    if width < 1 or height < 1:
+        raise CaptureError(f"{path}: ffmpeg reports a frame size of {width}×{height}; is it a video?")
+    rotation = _ROTATION.search("\n".join(lines[1:]))
+    duration = _DURATION.search(text)
+    hours, minutes, seconds = duration.groups() if duration else (0, 0, 0)
+    return _Stream(
+        index=index,
+        width=width,
+        height=height,
+        rotation_deg=float(rotation[1]) if rotation else 0.0,
+        fps=float(fps[1]) * (1000.0 if fps[2] else 1.0) if fps else 0.0,
+        duration_s=int(hours) * 3600 + int(minutes) * 60 + float(seconds),
+    )
+
+
+def _probe(path: Path) -> _Stream:
+    """``_Stream`` of the video at ``path``, from the header ``ffmpeg -i`` prints (it needs no ffprobe)."""
+    command = [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", f"file:{path}"]
+    try:
+        run = subprocess.run(command, stdin=subprocess.DEVNULL, capture_output=True, timeout=PROBE_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        raise CaptureError(
+            f"{path}: ffmpeg did not read the file's header within {PROBE_TIMEOUT_S:g} s; copy the file "
+            "to a local disk and try again"
         ) from None
+    return _parse_header(path, run.stderr.decode(errors="replace"))
 
 
-def _frame_rate(path: Path, meta: dict, fps: float | None) -> float:
-    """``fps`` when given (with a warning when the file says otherwise), else the file's own."""
-    stored = float(meta.get("fps") or 0.0)
+def _grid_rate(path: Path, stream: _Stream, fps: float | None) -> Fraction:
+    """The frame rate of the result: ``fps`` when given, else the file's average rate.
+
+    A rate ffmpeg prints rounded (29.97) is snapped to its exact NTSC value (30000/1001). A given
+    ``fps`` above the file's own repeats frames, which is warned about.
+    """
+    stored = stream.fps
     if fps is None:
         if not (math.isfinite(stored) and stored > 0):
             raise CaptureError(f"{path}: the file gives no frame rate; pass it, e.g. fps=30")
-        return stored
-    if stored > 0 and abs(fps - stored) > FPS_TOLERANCE * stored:
+        for base in _NTSC_BASES:
+            if abs(stored - base * 1000 / 1001) < 0.006:
+                return Fraction(base * 1000, 1001)
+        return Fraction(stored).limit_denominator(1001)
+    if stored > 0 and fps > stored * (1 + FPS_TOLERANCE):
         warnings.warn(
-            f"{path}: fps={fps:g} given, but the file says {stored:g} frames per second; times follow "
-            f"fps={fps:g}",
+            f"{path}: fps={fps:g} given, but the file says {stored:g} frames per second; frames are "
+            f"taken at {fps:g} fps by their timestamps, so some repeat (pass fps={stored:g} or less "
+            "to track each frame once)",
             MimeticWarning,
             stacklevel=3,
         )
-    return float(fps)
+    return Fraction(fps).limit_denominator(1_000_000)
 
 
-def _expected_frames(meta: dict, max_frames: int | None) -> int:
-    """The frame count the file's header implies (duration x fps), capped by ``max_frames``; 0 if unknown."""
-    duration, stored = float(meta.get("duration") or 0.0), float(meta.get("fps") or 0.0)
-    expected = round(duration * stored) if duration > 0 and stored > 0 else 0
+def _work_size(width: int, height: int) -> tuple[int, int]:
+    """(w, h) of the frames the face models see: (width, height) scaled to a long side of at most
+    ``WORK_SIZE_PX``, keeping the aspect ratio."""
+    scale = min(1.0, WORK_SIZE_PX / max(width, height))
+    return max(1, round(width * scale)), max(1, round(height * scale))
+
+
+@contextlib.contextmanager
+def _decoded(
+    path: Path, stream: _Stream, rate: Fraction, size: tuple[int, int], max_frames: int | None
+) -> Iterator[Iterator[np.ndarray]]:
+    """The frames of ``path`` on a constant ``rate`` grid at ``size``, as read-only (h, w, 3) uint8 RGB.
+
+    One ffmpeg process decodes the stream, turns it upright (ffmpeg's autorotation, from the
+    display matrix), places its frames on their timestamps at ``rate`` frames per second (the
+    ``fps`` filter repeats or drops frames: frame k shows the video at time k / rate), scales them
+    to ``size`` = (w, h) with area averaging and pipes them as raw RGB. On exit the process is
+    stopped and waited for and its pipes are closed, however the loop ended. ffmpeg failing
+    part-way (a damaged stream) is a ``CaptureError`` naming ``path``.
+    """
+    width, height = size
+    filters = f"fps={rate.numerator}/{rate.denominator}"
+    if size != stream.display_size:
+        filters += f",scale={width}:{height}:flags=area"
+    command = [
+        imageio_ffmpeg.get_ffmpeg_exe(),
+        "-hide_banner", "-nostdin", "-loglevel", "error",
+        "-i", f"file:{path}",
+        "-map", f"0:{stream.index}", "-vf", filters,
+        *(["-frames:v", str(max_frames)] if max_frames is not None else []),
+        "-f", "rawvideo", "-pix_fmt", "rgb24", "pipe:1",
+    ]  # fmt: skip
+    log.debug("decoding: %s", " ".join(command))
+    frame_bytes = width * height * 3
+    with tempfile.TemporaryFile() as messages:  # ffmpeg's stderr: a file never blocks ffmpeg
+        process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=messages)
+
+        def failed(reason: str) -> CaptureError:
+            messages.seek(0)
+            said = _last_line(messages.read().decode(errors="replace"))
+            return CaptureError(
+                f"{path}: ffmpeg stopped decoding the video ({said or reason}); the file may be damaged "
+                "or cut short. Re-encode it (e.g. ffmpeg -i in.mp4 out.mp4) or pass max_frames to stop "
+                "earlier."
+            )
+
+        def frames() -> Iterator[np.ndarray]:
+            while raw := process.stdout.read(frame_bytes):
+                if len(raw) < frame_bytes:
+                    raise failed(f"the last frame has {len(raw)} of {frame_bytes} bytes")
+                yield np.frombuffer(raw, np.uint8).reshape(height, width, 3)
+            if process.wait() != 0:
+                raise failed(f"exit status {process.returncode}")
+
+        try:
+            yield frames()
+        finally:
+            process.stdout.close()
+            if process.poll() is None:  # the caller stopped early: ffmpeg may be blocked writing
+                process.terminate()
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:  # pragma: no cover - ffmpeg ignoring SIGTERM
+                process.kill()
+                process.wait()
+
+
+def _expected_frames(stream: _Stream, rate: Fraction, max_frames: int | None) -> int:
+    """The frame count the header implies (duration x rate), capped by ``max_frames``; 0 if unknown."""
+    expected = round(stream.duration_s * rate) if stream.duration_s > 0 else 0
     return expected if max_frames is None else min(expected, max_frames)
 
 
@@ -127,36 +285,103 @@ def _to_pixels(normalised: np.ndarray, width: int, height: int) -> np.ndarray:
     return normalised * np.array([width, -height, -width], dtype=np.float64)
 
 
+def _boxes(faces: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Pixel bounding boxes (k, 4) (x0, y0, x1, y1) of FaceMesh faces (k, 478, 3) normalised."""
+    xy = faces[..., :2] * (width, height)  # (k, 478, 2)
+    return np.concatenate([xy.min(axis=1), xy.max(axis=1)], axis=1)
+
+
+def _largest(faces: np.ndarray, width: int, height: int) -> tuple[np.ndarray, int]:
+    """The face (478, 3) of ``faces`` (k >= 1, 478, 3) with the largest landmark box, and how many
+    distinct faces there are (boxes overlapping by more than ``SAME_FACE_IOU`` are one face)."""
+    boxes = _boxes(faces, width, height)  # (k, 4) pixels
+    areas = np.prod(boxes[:, 2:] - boxes[:, :2], axis=1)  # (k,)
+    order = np.argsort(-areas)
+    distinct: list[int] = []
+    for i in order:
+        lo = np.maximum(boxes[i, :2], boxes[distinct, :2])  # (d, 2)
+        hi = np.minimum(boxes[i, 2:], boxes[distinct, 2:])
+        overlap = np.prod(np.clip(hi - lo, 0.0, None), axis=1)  # (d,)
+        if not (overlap > SAME_FACE_IOU * (areas[i] + areas[distinct] - overlap)).any():
+            distinct.append(int(i))
+    return faces[order[0]], len(distinct)
+
+
+_SIDE_PAIRS = ((33, 263), (133, 362), (61, 291), (234, 454))
+"""FaceMesh points on the face's right and left: eye outer and inner corners, mouth corners, cheeks."""
+
+
+def _yaw_rad(face: np.ndarray, width: int, height: int) -> float:
+    """How far FaceMesh's face (478, 3), normalised in a ``width`` x ``height`` image, is turned
+    from the camera, in radians.
+
+    The angle between the face's right-to-left direction (summed over ``_SIDE_PAIRS``, in pixels)
+    and the image plane: 0 facing the camera, whatever the head's tilt in the picture, π/2 in
+    profile. FaceMesh's own estimate tops out near 1.1 rad (about 63°) on a face turned further.
+    """
+    right, left = zip(*_SIDE_PAIRS, strict=True)
+    across = (face[list(left)] - face[list(right)]).sum(axis=0) * (width, height, width)  # (3,) px
+    return math.atan2(abs(across[2]), math.hypot(across[0], across[1]))
+
+
+def _frame_list(frames: Sequence[int]) -> str:
+    """'0, 1, 2' or '0, 1, 2, 3, 4, …': the first ``SHOW_FRAMES`` of ``frames``."""
+    return ", ".join(str(k) for k in frames[:SHOW_FRAMES]) + (", …" if len(frames) > SHOW_FRAMES else "")
+
+
 def track_video(
     path: str | os.PathLike[str],
     *,
     fps: float | None = None,
     max_frames: int | None = None,
     min_score: float = 0.5,
+    max_yaw_rad: float = MAX_YAW_RAD,
     progress: Callable[[int, int], None] | None = None,
 ) -> Trajectories:
     """Track one face through a video with MediaPipe FaceMesh: 478 points per frame, in pixels.
 
-    Each frame is decoded to RGB (``imageio_ffmpeg.read_frames``) and scored by FaceDetection's
-    short-range model (``face_detection_score``); when the score reaches ``min_score`` FaceMesh
-    (video mode: it tracks the face from frame to frame, ``video_face_mesh``) gives its landmarks.
-    A frame scoring less, or in which FaceMesh finds nothing, has no face: NaN points and
-    confidence 0. FaceDetection runs on every frame, so each frame's confidence is its own score
-    and a face that leaves the picture is not tracked onto the background: it costs about 5 ms a
-    frame beside about 9 ms for FaceMesh and 5 ms to decode a 1280 x 720 frame (two CPU cores),
-    so about a quarter of the time.
+    1. ffmpeg (``imageio_ffmpeg.get_ffmpeg_exe``) reads the file's header: the video stream, its
+       stored size, display rotation, average frame rate and duration.
+    2. One ffmpeg process decodes the video as a player shows it: turned upright by its display
+       rotation (a phone video stored landscape but shown portrait comes out portrait), placed on
+       a constant grid of ``fps`` frames per second by the frames' timestamps (a variable-frame-rate
+       phone video's frame k is the picture at time k / fps; frames are repeated or dropped to
+       fill the grid) and scaled down to a long side of ``WORK_SIZE_PX`` (1280) pixels when
+       larger, so a 4K video costs little more than 720p.
+    3. Each frame is scored by FaceDetection's short-range model (``face_detection_score``); when
+       the score reaches ``min_score`` FaceMesh (video mode: it tracks faces from frame to frame,
+       ``video_face_mesh``) gives the landmarks of up to ``MAX_FACES`` faces, and the face with the
+       largest landmark box is kept.
+    4. A frame scoring less, or in which FaceMesh finds nothing, has no face: NaN points and
+       confidence 0. So has a frame whose face is turned more than ``max_yaw_rad`` from the camera
+       (FaceMesh's own estimate, from the depth of its left and right points): in profile, the far
+       half of the face is hidden and FaceMesh's points for it are guesses, so they are dropped
+       rather than passed on with a confidence they do not deserve.
+    5. The points are scaled to the pixels of the video as shown (rotated, full size).
+
+    FaceDetection runs on every frame, so each frame's confidence is its own score and a face that
+    leaves the picture is not tracked onto the background. Measured on two CPU cores (150-frame
+    H.264 clips, whole call): about 12 ms a frame at 1280 x 720 and 18 ms at 3840 x 2160, the
+    difference being ffmpeg decoding 4K; 4K frames decoded whole and given to FaceMesh took
+    27-33 ms.
 
     Parameters
     ----------
     path : path
         A video file ffmpeg reads (MP4, MOV, AVI, MKV, WebM …).
     fps : float, optional
-        Frames per second of the result; by default the file's own. A value more than 1 % away
-        from the file's is used, with a ``MimeticWarning``.
+        Frames per second of the result; by default the file's average rate (for a constant rate
+        video, its own; 29.97 is taken as 30000/1001). Frames are taken by their timestamps at this
+        rate, so a lower rate skips frames (faster) and a rate more than 1 % above the file's
+        repeats some, with a ``MimeticWarning``.
     max_frames : int, optional
-        Track only the first ``max_frames`` frames.
+        Track only the first ``max_frames`` frames (of the ``fps`` grid).
     min_score : float
         The FaceDetection score in [0, 1] below which a frame has no face.
+    max_yaw_rad : float
+        The most a face may be turned from the camera, in radians in (0, π/2]; beyond it a frame's
+        points are NaN (step 4). The default ``MAX_YAW_RAD`` is 50°; FaceMesh itself finds no face
+        beyond about 80° and reports at most about 63°, so π/2 keeps every face it finds.
     progress : callable(done, total), optional
         Called after each frame. ``total`` is the frame count the file's header implies (capped
         by ``max_frames``), raised to ``done`` if the file holds more; the last call is
@@ -166,26 +391,28 @@ def track_video(
     -------
     Trajectories
         ``names`` ``mediapipe_0`` … ``mediapipe_477`` (FaceMesh's order); ``positions``
-        (f, 478, 3) float64 in pixels: x right from the image's left edge, y up from its top
-        edge (so y ≤ 0 in the picture), z toward the viewer at the scale of x, NaN in frames
-        without a face; ``units`` "px"; ``confidence`` (f,) the FaceDetection score, 0 in frames
-        without a face; ``source`` the path.
+        (f, 478, 3) float64 in pixels of the frame as a player shows it (rotated upright, at the
+        video's full size): x right from the image's left edge (0 ≤ x ≤ width), y up from its top
+        edge (so -height ≤ y ≤ 0 in the picture), z toward the viewer at the scale of x, NaN in
+        frames without a usable face; ``fps`` the grid's rate, frame k at time k / fps from the
+        first frame; ``units`` "px"; ``confidence`` (f,) the FaceDetection score, 0 in frames
+        without a usable face; ``source`` the path.
 
     Raises
     ------
     CaptureError
         The file is missing or not a readable video, holds no frames, gives no frame rate (pass
-        ``fps``), or shows no face in any frame.
+        ``fps``), or shows no usable face in any frame.
     MissingExtraError
         mediapipe is not installed (``pip install 'mimetic[track]'``).
     ValueError
-        ``max_frames`` < 1 or ``min_score`` outside [0, 1].
+        ``max_frames`` < 1, ``min_score`` outside [0, 1] or ``max_yaw_rad`` outside (0, π/2].
 
     Warns
     -----
     MimeticWarning
-        Some frames have no face (how many, and the first few frame numbers), or ``fps``
-        contradicts the file.
+        Some frames have no face, or show the face turned past ``max_yaw_rad``, or show more than
+        one face (each: how many, and the first few frame numbers); or ``fps`` is above the file's.
     """
     path = Path(path)
     if fps is not None and not (math.isfinite(fps) and fps > 0):
@@ -194,20 +421,43 @@ def track_video(
         raise ValueError(f"max_frames must be a whole number >= 1; got {max_frames!r}")
     if not 0.0 <= min_score <= 1.0:
         raise ValueError(f"min_score={min_score} must be in [0, 1]")
+    if not 0.0 < max_yaw_rad <= math.pi / 2:
+        raise ValueError(f"max_yaw_rad={max_yaw_rad} must be in (0, π/2] radians")
     if not path.is_file():
         raise CaptureError(f"{path}: no such video file")
-    meta, reader = _open(path)
-    width, height = (int(n) for n in meta["size"])
-    positions, scores = [], []  # (478, 3) and the score per frame; None / 0.0 without a face
-    with closing(reader), video_face_mesh() as track:
-        rate = _frame_rate(path, meta, fps)
-        expected = _expected_frames(meta, max_frames)
-        start = time.perf_counter()
-        for done, frame in enumerate(_frames(path, reader, width, height), start=1):
+    # 1. the header
+    stream = _probe(path)
+    width, height = stream.display_size  # the frame as shown: what the points are in
+    work = _work_size(width, height)  # what the models see
+    rate = _grid_rate(path, stream, fps)
+    expected = _expected_frames(stream, rate, max_frames)
+    log.debug(
+        "%s: stream %d, %d×%d stored, rotation %g°, %g fps, %.2f s; tracked at %d×%d, %s fps",
+        path, stream.index, stream.width, stream.height, stream.rotation_deg, stream.fps,
+        stream.duration_s, *work, rate,
+    )  # fmt: skip
+    positions, scores = [], []  # (478, 3) and the score per frame; None / 0.0 without a usable face
+    turned, crowded = [], []  # frames whose face is in profile; frames with more than one face
+    start = time.perf_counter()
+    # 2.-3. decode and track
+    with (
+        _decoded(path, stream, rate, work, max_frames) as frames,
+        video_face_mesh(max_faces=MAX_FACES) as track,
+    ):
+        for done, frame in enumerate(frames, start=1):
             score = face_detection_score(frame)
-            normalised = track(frame) if score >= min_score else None
-            positions.append(None if normalised is None else _to_pixels(normalised, width, height))
-            scores.append(0.0 if normalised is None else score)
+            faces = track(frame) if score >= min_score else np.empty((0, N_LANDMARKS, 3))  # (k, 478, 3)
+            face = None
+            if len(faces):
+                face, distinct = _largest(faces, *work)
+                if distinct > 1:
+                    crowded.append(done - 1)
+                if _yaw_rad(face, *work) > max_yaw_rad:  # 4. in profile
+                    turned.append(done - 1)
+                    face = None
+            # 5. to the pixels of the video as shown
+            positions.append(None if face is None else _to_pixels(face, width, height))
+            scores.append(0.0 if face is None else score)
             if progress is not None:
                 progress(done, max(expected, done))
             if done == max_frames:
@@ -219,26 +469,55 @@ def track_video(
         progress(n, n)
     elapsed = time.perf_counter() - start
     log.debug("tracked %d frames of %d×%d in %.2f s (%.1f frames/s)", n, width, height, elapsed, n / elapsed)
-    missing = [k for k, p in enumerate(positions) if p is None]
-    if len(missing) == n:
+    turned_set = set(turned)
+    missing = [k for k, p in enumerate(positions) if p is None and k not in turned_set]
+    if len(missing) + len(turned) == n:
+        if not turned:
+            raise CaptureError(
+                f"no face found in any of the {n} frames of {path}; the video must show one face, large "
+                f"and from the front (FaceDetection's short-range model, score >= min_score={min_score:g}). "
+                "Crop the video to the face, or lower min_score."
+            )
         raise CaptureError(
-            f"no face found in any of the {n} frames of {path}; the video must show one face, large "
-            f"and from the front (FaceDetection's short-range model, score >= min_score={min_score:g}). "
-            "Crop the video to the face, or lower min_score."
+            f"no usable face in any of the {n} frames of {path}: {len(missing)} show no face and "
+            f"{len(turned)} a face turned more than {math.degrees(max_yaw_rad):.0f}° from the camera; "
+            "film the face from the front, or raise max_yaw_rad (up to π/2) to keep turned faces."
         )
-    if len(missing):
-        shown = ", ".join(str(k) for k in missing[:SHOW_FRAMES]) + (
-            ", …" if len(missing) > SHOW_FRAMES else ""
-        )
+    if missing:
         warnings.warn(
-            f"{path}: no face in {len(missing)} of {n} frames (frames {shown}, counting from 0); "
-            "their points are NaN and their confidence 0",
+            f"{path}: no face in {len(missing)} of {n} frames (frames {_frame_list(missing)}, counting "
+            "from 0); their points are NaN and their confidence 0",
+            MimeticWarning,
+            stacklevel=2,
+        )
+    if turned:
+        warnings.warn(
+            f"{path}: the face is turned more than {math.degrees(max_yaw_rad):.0f}° from the camera in "
+            f"{len(turned)} of {n} frames (frames {_frame_list(turned)}, counting from 0); FaceMesh "
+            "guesses the hidden half of a face in profile, so their points are NaN and their confidence 0",
+            MimeticWarning,
+            stacklevel=2,
+        )
+    if crowded:
+        warnings.warn(
+            f"{path}: more than one face in {len(crowded)} of {n} frames (frames {_frame_list(crowded)}, "
+            "counting from 0); the largest face is tracked in each. Crop the video to one face if that "
+            "is not the one you want.",
             MimeticWarning,
             stacklevel=2,
         )
     nowhere = np.full((N_LANDMARKS, 3), np.nan)
     stacked = np.stack([nowhere if p is None else p for p in positions])  # (f, 478, 3)
-    return Trajectories(MEDIAPIPE_NAMES, stacked, rate, "px", np.array(scores), str(path))
+    return Trajectories(
+        MEDIAPIPE_NAMES,
+        stacked,
+        float(rate),
+        "px",
+        np.array(scores),
+        str(path),
+        tracked=True,
+        image_size=(width, height),
+    )
 
 
 def _skin_faces(mesh: Mesh) -> np.ndarray:
