@@ -70,15 +70,11 @@ from scipy.optimize import lsq_linear
 from threadpoolctl import threadpool_limits
 
 import mimetic.capture.performance as performance
+import mimetic.capture.smooth as smoothing
 from bench_basis import print_table, round_robin, table
+from mimetic.capture.expression import MIN_MOVE_REL, MarkerSolver, prepare_marker_solver
 from mimetic.capture.markers import MarkerSet, marker_set
-from mimetic.capture.performance import (
-    CUTOFF_HZ,
-    MarkerSolver,
-    prepare_marker_solver,
-    smooth_markers,
-    solve_performance,
-)
+from mimetic.capture.performance import CUTOFF_HZ, solve_performance
 from mimetic.capture.qp import box_qp_frames
 from mimetic.capture.trajectories import Trajectories
 from mimetic.engines import make_engine
@@ -177,7 +173,7 @@ def prepare(rig: Rig) -> Problem:
     all_deltas = np.einsum("mn,cnd->cmd", markers.weights(rig).toarray(), basis.deltas)  # (c, m, 3)
     effect = np.sqrt(np.einsum("cmd,cmd->c", all_deltas, all_deltas))
     free = np.sort(np.argsort(-effect, kind="stable")[:CHANNELS])
-    seen = np.flatnonzero(effect > performance.MIN_MOVE_REL * effect.max())
+    seen = np.flatnonzero(effect > MIN_MOVE_REL * effect.max())
     left_out = tuple(basis.channels[j] for j in np.setdiff1d(seen, free))
     by_name = {ch.name: ch for ch in rig.channels}
     lower = np.array([by_name[basis.channels[j]].minimum for j in free])
@@ -304,6 +300,12 @@ def capture_trajectories(
 # --------------------------------------------------------------------------- helpers
 
 
+def smooth_markers(y: np.ndarray, fps: float, cutoff_hz: float, *, robust: bool = True, size: float = 1.0):
+    """``capture.smooth.smooth_points``'s smoothed points and outliers."""
+    result = smoothing.smooth_points(y, fps, cutoff_hz, robust=robust, size=size)
+    return result.points, result.outliers
+
+
 def projected(solver: MarkerSolver, y: np.ndarray) -> np.ndarray:
     """(f, m, 3): P_j y_tj (the sliding markers' motion along their contour taken out)."""
     out = y.copy()
@@ -324,7 +326,7 @@ def bvls(solver: MarkerSolver, y: np.ndarray, frames: np.ndarray, out: np.ndarra
     """``lsq_linear(method="bvls")`` on each of ``frames``: min ‖[R; sqrt(damping) I] a − [P y; 0]‖²
     within the bounds, the objective of ``MarkerSolver.solve`` (sparsity 0) as least squares."""
     m, k = solver.rows.shape[0], solver.rows.shape[2]
-    A = np.vstack([solver.rows.reshape(3 * m, k), np.diag(np.sqrt(solver.damping))])
+    A = np.vstack([solver.rows.reshape(3 * m, k), np.linalg.cholesky(solver.prior()).T])
     b = np.zeros(3 * m + k)
     targets = projected(solver, y[frames]).reshape(len(frames), 3 * m)
     with threadpool_limits(BASELINE_BLAS_THREADS, "blas"):
@@ -565,10 +567,10 @@ def bench_temporal(problem: Problem, capture: Capture, rounds: int) -> dict[str,
     )
     print(
         f"   damaged clip: {capture.missing.mean():.1%} of the samples dropped, {capture.spikes.mean():.1%} "
-        f"spikes; the solve used {used.mean():.1%} of the samples (gaps over {performance.MAX_GAP_S:g} s "
+        f"spikes; the solve used {used.mean():.1%} of the samples (gaps over {smoothing.MAX_GAP_S:g} s "
         f"stay missing), every marker in {used.all(axis=1).mean():.1%} of the frames (the others:\n"
         f"   one normal matrix per frame); {(capture.spikes & used).sum()} of {capture.spikes.sum()} spikes "
-        f"kept by the smoother (under its {performance.OUTLIER_SIGMAS:g}σ cut, Cauchy-weighted)"
+        f"kept by the smoother (under its {smoothing.SPIKE_SIGMAS:g}σ cut, Cauchy-weighted)"
     )
     print(
         "   activation error against the truth, RMS: per-frame raw "

@@ -2,7 +2,8 @@
 
 * Nothing in the library imports ``mimetic.testing`` (test and benchmark plumbing) or the CLI.
 * Only the CLI and the demo import ``mimetic.view``, ``mimetic.export`` and ``mimetic.demo``
-  (besides those packages themselves), and ``mimetic.batch``, which runs the commands' jobs on
+  (besides those packages themselves; ``mimetic.testing``, plumbing above everything, films its
+  validation takes with ``view``), and ``mimetic.batch``, which runs the commands' jobs on
   workers, imports ``view`` and ``export``; only the CLI imports ``mimetic.batch``. The web viewer's
   downloads (``mimetic.view.exports``) import ``export``: its GLB button writes what the CLI does.
 * ``mimetic.render`` (the offscreen renderer) sits below ``fit``: it imports only ``mesh`` and the
@@ -66,7 +67,7 @@ def test_layout_sees_the_whole_package():
         ("mimetic.testing", ("mimetic.testing",)),
         ("mimetic.cli", ("mimetic.testing",)),  # testing.run_cli: plumbing above everything
         ("mimetic.demo", ("mimetic.cli", "mimetic.demo")),
-        ("mimetic.view", ("mimetic.view", "mimetic.cli", "mimetic.demo", "mimetic.batch")),
+        ("mimetic.view", ("mimetic.view", "mimetic.cli", "mimetic.demo", "mimetic.batch", "mimetic.testing")),
         (
             "mimetic.export",
             ("mimetic.export", "mimetic.cli", "mimetic.demo", "mimetic.batch", "mimetic.view.exports"),

@@ -864,29 +864,42 @@ CAPTURE_OUTPUTS = (".json", ".csv", *ANIMATE_OUTPUTS)
 CaptureUnits = Enum("CaptureUnits", {u: u for u in ("mm", "cm", "m", "px")}, type=str)
 
 
-def _capture_options(channels: str, rig) -> tuple[str, ...] | None:
-    """--channels: "all" (None: every channel the markers see but the gaze), "determined" (resolved
-    later) or names."""
+def _capture_channels(channels: str, rig) -> None:
+    """--channels: "all", "determined" or names the rig has (checked here, so a typo is a usage error)."""
     if channels in ("all", "determined"):
-        return None
-    names = tuple(n.strip() for n in channels.split(",") if n.strip())
-    unknown = [n for n in names if n not in set(rig.channel_names)]
+        return
+    unknown = [
+        n.strip() for n in channels.split(",") if n.strip() and n.strip() not in set(rig.channel_names)
+    ]
     if unknown:
         raise typer.BadParameter(f"unknown channel(s) {', '.join(unknown[:5])}", param_hint="--channels")
-    return names
 
 
 def _solve_capture(
-    loaded, trajectories, *, markers, engine, neutral_frame, channels, cutoff, robust, sparsity, refine=0
+    loaded,
+    trajectories,
+    *,
+    markers,
+    engine,
+    neutral_frame,
+    channels,
+    cutoff,
+    robust,
+    sparsity,
+    refine=0,
+    fov=None,
+    focal=None,
+    markers_out=None,
 ):
-    """Bake the rig, pick the channels, solve (``refine`` Gauss-Newton steps against the engine);
-    progress bars per stage."""
-    from mimetic.capture.markers import layout_for, marker_set
-    from mimetic.capture.performance import determined_channels, smoothed_noise, solve_performance
+    """Bake the rig, place the layout, pick the channels, solve (``refine`` Gauss-Newton steps against
+    the engine); progress bars per stage; the placed markers to ``markers_out`` when given."""
+    from mimetic.capture.expression import resolve_channels
+    from mimetic.capture.markers import layout_for, marker_set, save_marker_set
+    from mimetic.capture.performance import solve_performance
     from mimetic.engines import make_engine
     from mimetic.engines.bake import bake
-    from mimetic.mesh.units import UNIT_SCALE
 
+    _capture_channels(channels, loaded)
     deformer = make_engine(loaded, engine)
     with _progress("bake") as progress:
         basis = bake(deformer, correctives=0, samples=2, progress=progress).basis
@@ -895,14 +908,9 @@ def _solve_capture(
         progress(0, 1)
         placed = marker_set(loaded, layout)
         progress(1, 1)
-    active = _capture_options(channels, loaded)
-    if channels == "determined":
-        metre = UNIT_SCALE.get(loaded.units or "", None)
-        noise = 0.001 / metre / 3**0.5 if metre else 0.005 * loaded.scale  # 1 mm, per coordinate
-        noise = smoothed_noise(noise, trajectories.fps, cutoff or None)
-        active = determined_channels(loaded, basis, placed, noise=noise)
+    active = resolve_channels(loaded, basis, placed, channels, fps=trajectories.fps, cutoff_hz=cutoff or None)
     with _step_progress() as progress:
-        return solve_performance(
+        performance = solve_performance(
             loaded,
             trajectories,
             basis=basis,
@@ -914,8 +922,13 @@ def _solve_capture(
             sparsity=sparsity,
             refine=refine,
             engine=deformer,
+            fov_deg=fov,
+            focal=focal,
             progress=progress,
         )
+    if markers_out is not None:
+        save_marker_set(performance.markers, loaded, markers_out, note=f"placed on {trajectories.source}")
+    return performance
 
 
 def _capture_outputs(
@@ -948,7 +961,15 @@ def _capture_outputs(
     )
 
 
-_MARKERS_HELP = "Marker layout: paper, ibug68, mediapipe or a marker .json (default: from the point names)."
+_MARKERS_HELP = (
+    "Marker layout: paper, ibug68, mediapipe or a marker .json (default: from the point names). A file "
+    "written by --markers-out holds one performer's markers, placed on an earlier take: not placed again."
+)
+_MARKERS_OUT_HELP = (
+    "Also write the markers as placed on this performer (.json), for their next takes (--markers)."
+)
+_FOV_HELP = "Camera's vertical field of view in degrees (image landmarks; default: estimated from the take)."
+_FOCAL_HELP = "Camera's focal length in pixels (image landmarks; instead of --fov)."
 _CHANNELS_HELP = (
     "Channels to solve: all (every channel the markers see but the gaze), determined (those the markers "
     "pin down at 1 mm noise) or a comma-separated list."
@@ -975,10 +996,16 @@ def capture_solve(
         None, "--edits", help="An edited clip JSON of an earlier solve: its edit layers go over this solve."
     ),
     report: Path | None = typer.Option(None, "--report", help="Also write the plausibility report (.json)."),
+    markers_out: Path | None = typer.Option(None, "--markers-out", help=_MARKERS_OUT_HELP),
+    fov: float | None = typer.Option(None, "--fov", min=1.0, max=170.0, help=_FOV_HELP),
+    focal: float | None = typer.Option(None, "--focal", min=1.0, help=_FOCAL_HELP),
     size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
     engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Engine to solve against."),
 ) -> None:
     """Solve a marker or landmark capture into the rig's channel activations (head motion removed).
+
+    The layout's markers are first moved to where this performer's are (from the neutral frame);
+    --markers-out keeps that placement for the performer's next takes.
 
     Examples:
 
@@ -995,6 +1022,8 @@ def capture_solve(
     _output(out, CAPTURE_OUTPUTS)
     if report is not None:
         _output(report, (".json",), "--report")
+    if markers_out is not None:
+        _output(markers_out, (".json",), "--markers-out")
     loaded = load_rig(rig)
     trajectories = read_trajectories(markers_file, fps=fps, units=units.value if units else None)
     performance = _solve_capture(
@@ -1008,6 +1037,9 @@ def capture_solve(
         robust=robust,
         sparsity=sparsity,
         refine=refine,
+        fov=fov,
+        focal=focal,
+        markers_out=markers_out,
     )
     _capture_outputs(loaded, performance, out, report, engine.value, size, edits)
 
@@ -1025,10 +1057,19 @@ def capture_video(
     channels: str = typer.Option("all", "--channels", help=_CHANNELS_HELP),
     cutoff: float = typer.Option(8.0, "--cutoff", min=0.0, help="Smoothing cutoff in Hz (0: none)."),
     report: Path | None = typer.Option(None, "--report", help="Also write the plausibility report (.json)."),
+    markers: str | None = typer.Option(
+        None, "--markers", help="A marker .json placed on an earlier video of this face (--markers-out)."
+    ),
+    markers_out: Path | None = typer.Option(None, "--markers-out", help=_MARKERS_OUT_HELP),
+    fov: float | None = typer.Option(None, "--fov", min=1.0, max=170.0, help=_FOV_HELP),
+    focal: float | None = typer.Option(None, "--focal", min=1.0, help=_FOCAL_HELP),
     size: int = typer.Option(512, "--size", min=64, max=2160, help="Video size in pixels (square)."),
     engine: EngineName = typer.Option(EngineName.wire, "--engine", help="Engine to solve against."),
 ) -> None:
     """Track a face video with MediaPipe FaceMesh (extra [track]) and solve it into activations.
+
+    The head's motion is taken out through a perspective camera (its field of view estimated from
+    the take, or --fov / --focal); the landmarks are placed on the rig where this face's are.
 
     Examples:
 
@@ -1045,7 +1086,10 @@ def capture_video(
         _output(report, (".json",), "--report")
     if landmarks_out is not None:
         _output(landmarks_out, (".csv", ".trc"), "--landmarks-out")
+    if markers_out is not None:
+        _output(markers_out, (".json",), "--markers-out")
     loaded = load_rig(rig)
+    _capture_channels(channels, loaded)
     with _progress("track") as progress:
         trajectories = track_video(video, max_frames=max_frames, progress=progress)
     if landmarks_out is not None:
@@ -1053,13 +1097,16 @@ def capture_video(
     performance = _solve_capture(
         loaded,
         trajectories,
-        markers="mediapipe",
+        markers=markers or "mediapipe",
         engine=engine.value,
         neutral_frame=neutral_frame,
         channels=channels,
         cutoff=cutoff,
         robust=True,
         sparsity=0.0,
+        fov=fov,
+        focal=focal,
+        markers_out=markers_out,
     )
     _capture_outputs(loaded, performance, out, report, engine.value, size)
 

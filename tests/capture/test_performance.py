@@ -18,7 +18,8 @@ from mimetic.capture import (
     retarget,
     solve_performance,
 )
-from mimetic.capture.performance import determined_channels, smooth_markers, smoothed_noise, smoothing_weight
+from mimetic.capture.expression import determined_channels
+from mimetic.capture.smooth import smooth_points, smoothed_noise, smoothing_weight
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.engines.basis import evaluate_basis
@@ -116,7 +117,14 @@ def test_clean_capture_is_recovered(rig, baked, ibug):
     angles = head_angles(90)
     traj, _ = capture(rig, baked, ibug, values, angles=angles, rng=rng, noise_mm=0.0, drop=0.0, spikes=0.0)
     performance = solve_performance(
-        rig, traj, basis=baked, active=names, cutoff_hz=None, robust=False, regularization=0.0
+        rig,
+        traj,
+        basis=baked,
+        active=names,
+        cutoff_hz=None,
+        robust=False,
+        regularization=0.0,
+        shape_prior=0.0,
     )
     columns = [rig.channel_index(n) for n in names]
     np.testing.assert_allclose(performance.clip.values[:, columns], values[:, columns], atol=2e-3)
@@ -129,7 +137,7 @@ def test_marker_solve_is_bounded_least_squares(rig, baked, ibug):
     """The per-frame solve (weights, sliding projectors, damping) equals scipy's BVLS on the stacked rows."""
     from scipy.optimize import lsq_linear
 
-    from mimetic.capture.performance import prepare_marker_solver
+    from mimetic.capture.expression import prepare_marker_solver
 
     rng = np.random.default_rng(9)
     deltas = np.einsum("mn,cnd->cmd", ibug.weights(rig).toarray(), baked.deltas)[:50]  # (50, 68, 3)
@@ -142,7 +150,7 @@ def test_marker_solve_is_bounded_least_squares(rig, baked, ibug):
     x, _ = solver.solve(y, weights)
     for t in range(12):
         rows = np.concatenate([np.sqrt(weights[t])[:, None, None] * solver.rows, np.zeros((0, 3, 50))])
-        A = np.concatenate([rows.reshape(-1, 50), np.diag(np.sqrt(solver.damping))])
+        A = np.concatenate([rows.reshape(-1, 50), np.linalg.cholesky(solver.prior()).T])
         projected = np.einsum("mij,mj->mi", solver.projectors, y[t]) * np.sqrt(weights[t])[:, None]
         b = np.concatenate([projected.ravel(), np.zeros(50)])
         expected = lsq_linear(A, b, bounds=(lower, upper), method="bvls", tol=1e-14).x
@@ -206,7 +214,8 @@ def test_smoother_halves_its_cutoff_and_fills_short_gaps():
     y[:, 1, 0] = slow
     y[200:206, 1] = np.nan  # 0.1 s gap: filled
     y[400:460, 1] = np.nan  # 1 s gap: left missing
-    smoothed, outliers = smooth_markers(y, fps, cutoff, robust=False)
+    result = smooth_points(y, fps, cutoff, robust=False)
+    smoothed, outliers = result.points, result.outliers
     middle = slice(100, 500)
     assert np.std(smoothed[middle, 0, 0]) / np.std(at_cutoff[middle]) == pytest.approx(0.5, abs=0.08)
     assert np.abs(smoothed[200:206, 1, 0] - slow[200:206]).max() < 0.01
@@ -224,7 +233,8 @@ def test_smoother_rejects_spikes():
     spikes = rng.choice(f, 6, replace=False)
     clean = y.copy()
     y[spikes, 0] += 1.0
-    smoothed, outliers = smooth_markers(y, 60.0, 8.0)
+    result = smooth_points(y, 60.0, 8.0)
+    smoothed, outliers = result.points, result.outliers
     assert set(np.flatnonzero(outliers[:, 0])) >= set(spikes.tolist())
     assert np.abs(smoothed - clean).max() < 0.05
 
@@ -318,7 +328,7 @@ def test_solved_clip_plays_on_another_rig(rig, baked, ibug):
 
 def test_noise_gain_matches_the_spread_of_solves_of_noisy_markers(rig, baked, ibug):
     """The predicted per-channel standard deviation against 400 solves of pure noise."""
-    from mimetic.capture.performance import marker_deltas, noise_gain, prepare_marker_solver
+    from mimetic.capture.expression import marker_deltas, noise_gain, prepare_marker_solver
 
     rng = np.random.default_rng(10)
     names = ("jaw_open", "cheek_puff_L", "mouth_slide_R")

@@ -272,10 +272,10 @@ def _speak(item: Item) -> None:
 
 def _capture(item: Item) -> float:
     from mimetic.atomic import atomic_write
+    from mimetic.capture.expression import resolve_channels
     from mimetic.capture.formats import read_trajectories
     from mimetic.capture.markers import layout_for
-    from mimetic.capture.performance import determined_channels, smoothed_noise, solve_performance
-    from mimetic.mesh.units import UNIT_SCALE
+    from mimetic.capture.performance import solve_performance
 
     o = item.options
     trajectories = read_trajectories(item.input, fps=o["fps"], units=o["units"])
@@ -284,19 +284,7 @@ def _capture(item: Item) -> float:
     prepared = _prepared_rig(o["rig"], stat.st_size, stat.st_mtime_ns, o["engine"], layout)
     loaded, deformer, basis, placed = prepared
     cutoff = o["cutoff"] or None
-    active = None
-    if o["channels"] == "determined":
-        metre = UNIT_SCALE.get(loaded.units or "", None)
-        noise = 0.001 / metre / 3**0.5 if metre else 0.005 * loaded.scale  # 1 mm, per coordinate
-        active = determined_channels(
-            loaded, basis, placed, noise=smoothed_noise(noise, trajectories.fps, cutoff)
-        )
-    elif o["channels"] != "all":
-        active = tuple(n.strip() for n in o["channels"].split(",") if n.strip())
-        unknown = [n for n in active if n not in set(loaded.channel_names)]
-        if unknown:
-            names = ", ".join(unknown[:5])
-            raise MimeticError(f"channels: {Path(o['rig']).name} has no channel(s) {names}")
+    active = resolve_channels(loaded, basis, placed, o["channels"], fps=trajectories.fps, cutoff_hz=cutoff)
     performance = solve_performance(
         loaded,
         trajectories,

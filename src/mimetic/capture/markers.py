@@ -19,8 +19,9 @@ Layouts (``marker_set(rig, layout)``):
 * ``"mediapipe"``: FaceMesh's 468 face points (``mediapipe_<k>``), located on this rig by running
   FaceMesh on renders of it (extra ``[track]``); the lower face oval slides.
 * a JSON file ``{"units": "cm", "markers": {"name": [x, y, z] | "landmark name", ...},
-  "stable": [...], "sliding": [...]}``: positions near the rig's neutral skin (snapped to it) or
-  the names of rig landmarks.
+  "stable": [...], "sliding": [...], "layout": "ibug68", "placed": false}``: positions near the
+  rig's neutral skin (snapped to it) or the names of rig landmarks; ``save_marker_set`` writes one
+  (``placed`` true: the markers were placed on a performer and are not moved again).
 """
 
 from __future__ import annotations
@@ -28,20 +29,25 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 
+from mimetic.atomic import atomic_write
 from mimetic.capture.trajectories import CaptureError
 from mimetic.head.landmarks import IBUG68
 from mimetic.mesh.closest import closest_points
+from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import SurfacePoint
 from mimetic.mesh.units import UNIT_SCALE
 from mimetic.rig.model import Rig
 
 LAYOUTS = ("paper", "ibug68", "mediapipe")
+SNAP_MAX_ANGLE_DEG = 75.0
+"""A marker moved to a performer's stays on skin facing within this angle of the skin it was on."""
 
 IBUG_STABLE = (1, 2, 3, 15, 16, 17, 28, 29, 30, 40, 43)
 """iBUG points (1-based) at the top of the jaw line (by the ears), on the nose bridge and at the inner
@@ -53,10 +59,11 @@ IBUG_SLIDING = tuple(range(1, 18))
 MEDIAPIPE_STABLE = (6, 8, 9, 10, 151, 168, 197, 195, 5, 4, 33, 133, 362, 263, 127, 356, 109, 338)
 """FaceMesh points on the forehead, nose bridge, eye corners and temples."""
 MEDIAPIPE_SLIDING = (
-    *(323, 361, 288, 397, 365, 379, 378, 400, 377, 152),
-    *(148, 176, 149, 150, 136, 172, 58, 132, 93),
+    *(10, 338, 297, 332, 284, 251, 389, 356, 454, 323, 361, 288, 397, 365, 379, 378, 400, 377, 152),
+    *(148, 176, 149, 150, 136, 172, 58, 132, 93, 234, 127, 162, 21, 54, 103, 67, 109),
 )
-"""The lower face oval, from ear to ear under the chin."""
+"""The face's oval (``FACEMESH_FACE_OVAL``), round from the top of the forehead: the outline a tracker
+sees, on skin with no features to hold it."""
 
 PAPER_FACE = (
     "brow_inner_L",
@@ -105,6 +112,9 @@ class MarkerSet:
         Unit contour direction at the neutral for sliding markers; zero for the others.
     layout : str
         "paper", "ibug68", "mediapipe" or the file it was read from.
+    placed : bool
+        The markers were placed on one performer's neutral (``capture.calibrate``), so a solve
+        keeps them where they are.
     """
 
     names: tuple[str, ...]
@@ -113,6 +123,7 @@ class MarkerSet:
     sliding: np.ndarray
     tangents: np.ndarray
     layout: str
+    placed: bool = False
 
     def __post_init__(self) -> None:
         m = len(self.names)
@@ -154,40 +165,78 @@ class MarkerSet:
         if missing:
             raise CaptureError(f"marker set {self.layout!r} has no marker(s) {', '.join(missing[:5])}")
         k = [index[n] for n in names]
-        return MarkerSet(
-            tuple(names),
-            tuple(self.points[j] for j in k),
-            self.stable[k],
-            self.sliding[k],
-            self.tangents[k],
-            self.layout,
+        return self.replace(
+            names=tuple(names),
+            points=tuple(self.points[j] for j in k),
+            stable=self.stable[k],
+            sliding=self.sliding[k],
+            tangents=self.tangents[k],
         )
+
+    def replace(self, **changes) -> MarkerSet:
+        """A copy with the named attributes changed (``dataclasses.replace``)."""
+        return replace(self, **changes)
 
 
 # --------------------------------------------------------------------------- building
 
 
-def _snap(rig: Rig, positions: np.ndarray) -> tuple[SurfacePoint, ...]:
-    """Surface points of the rig's skin (or whole mesh) closest to ``positions`` (k, 3)."""
+class Snapped(NamedTuple):
+    """Points put on a rig's skin: ``points`` (k SurfacePoints), their ``positions`` (k, 3) and
+    ``distances`` (k,) from the queries, rig units."""
+
+    points: tuple[SurfacePoint, ...]
+    positions: np.ndarray
+    distances: np.ndarray
+
+
+def snap_to_skin(rig: Rig, positions: np.ndarray, normals: np.ndarray | None = None) -> Snapped:
+    """The points of the rig's skin (or whole mesh) closest to ``positions`` (k, 3), rig units; with
+    ``normals`` (k, 3) (unit), only on skin facing within ``SNAP_MAX_ANGLE_DEG`` of them, so a point at
+    the lips' contact line stays on its own lip."""
     mesh = rig.mesh
     faces = mesh.parts["skin"] if "skin" in mesh.parts else np.arange(mesh.n_faces)
-    hit = closest_points(mesh.vertices, mesh.faces[faces], positions)
-    return tuple(
+    min_cos = float(np.cos(np.radians(SNAP_MAX_ANGLE_DEG)))
+    hit = closest_points(mesh.vertices, mesh.faces[faces], positions, query_normals=normals, min_cos=min_cos)
+    lost = hit.faces < 0  # no skin faces that way near: the closest point at all
+    if lost.any():
+        anywhere = closest_points(mesh.vertices, mesh.faces[faces], positions[lost])
+        for name in ("points", "faces", "bary", "distance"):
+            getattr(hit, name)[lost] = getattr(anywhere, name)
+    points = tuple(
         SurfacePoint(int(faces[f]), (float(b[0]), float(b[1]), float(b[2])))
         for f, b in zip(hit.faces, hit.bary, strict=True)
     )
+    return Snapped(points, hit.points, hit.distance)
 
 
-def _contour_tangents(positions: np.ndarray, sliding: np.ndarray, chain: Sequence[int]) -> np.ndarray:
-    """Unit tangents (m, 3) along ``chain`` (marker indices in contour order) at its sliding markers."""
+def marker_normals(markers: MarkerSet, rig: Rig) -> np.ndarray:
+    """(m, 3) the rig's unit skin normal at each marker, at rest."""
+    normals = markers.weights(rig) @ vertex_normals(rig.mesh.vertices, rig.mesh.faces)
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+
+
+def _contour_chain(names: Sequence[str], sliding: np.ndarray) -> list[int]:
+    """The sliding markers' indices in contour order: iBUG's jaw line by number, MediaPipe's face
+    oval in ``MEDIAPIPE_SLIDING``'s order, otherwise the order of the set."""
+    order = {f"ibug68_{k:02d}": i for i, k in enumerate(IBUG_SLIDING)}
+    order.update({f"mediapipe_{k}": i for i, k in enumerate(MEDIAPIPE_SLIDING)})
+    chain = [j for j in range(len(names)) if sliding[j]]
+    if all(names[j] in order for j in chain):
+        chain.sort(key=lambda j: order[names[j]])
+    return chain
+
+
+def with_tangents(markers: MarkerSet, rig: Rig) -> MarkerSet:
+    """``markers`` with the contour tangents of its sliding markers at their positions on ``rig``
+    (unit (m, 3); each the direction from the contour's previous marker to its next)."""
+    positions = markers.positions(rig)
+    chain = _contour_chain(markers.names, markers.sliding)
     tangents = np.zeros_like(positions)
     for k, j in enumerate(chain):
-        before = positions[chain[max(k - 1, 0)]]
-        after = positions[chain[min(k + 1, len(chain) - 1)]]
-        direction = after - before
+        direction = positions[chain[min(k + 1, len(chain) - 1)]] - positions[chain[max(k - 1, 0)]]
         tangents[j] = direction / max(np.linalg.norm(direction), 1e-300)
-    tangents[~sliding] = 0.0
-    return tangents
+    return markers.replace(tangents=tangents)
 
 
 def _paper(rig: Rig) -> MarkerSet:
@@ -207,7 +256,7 @@ def _paper(rig: Rig) -> MarkerSet:
     points = []
     for name in names:
         if name in derived:
-            points.append(_snap(rig, derived[name][None])[0])
+            points.append(snap_to_skin(rig, derived[name][None]).points[0])
         else:
             points.append(rig.landmarks[name])
     m = len(names)
@@ -227,9 +276,7 @@ def _ibug(rig: Rig) -> MarkerSet:
     number = np.arange(1, 69)
     stable = np.isin(number, IBUG_STABLE)
     sliding = np.isin(number, IBUG_SLIDING)
-    positions = rig.landmark_positions(list(IBUG68))
-    tangents = _contour_tangents(positions, sliding, [k - 1 for k in IBUG_SLIDING])
-    return MarkerSet(names, points, stable, sliding, tangents, "ibug68")
+    return with_tangents(MarkerSet(names, points, stable, sliding, np.zeros((68, 3)), "ibug68"), rig)
 
 
 def _mediapipe(rig: Rig) -> MarkerSet:
@@ -239,12 +286,9 @@ def _mediapipe(rig: Rig) -> MarkerSet:
     number = np.array([int(n.split("_")[1]) for n in names])
     stable = np.isin(number, MEDIAPIPE_STABLE)
     sliding = np.isin(number, MEDIAPIPE_SLIDING)
-    marker_set = MarkerSet(names, points, stable, sliding, np.zeros((len(names), 3)), "mediapipe")
-    positions = marker_set.positions(rig)
-    index = {k: j for j, k in enumerate(number)}
-    chain = [index[k] for k in MEDIAPIPE_SLIDING if k in index]
-    tangents = _contour_tangents(positions, sliding, chain)
-    return MarkerSet(names, points, stable, sliding, tangents, "mediapipe")
+    return with_tangents(
+        MarkerSet(names, points, stable, sliding, np.zeros((len(names), 3)), "mediapipe"), rig
+    )
 
 
 def load_marker_set(path: str | os.PathLike[str], rig: Rig) -> MarkerSet:
@@ -276,7 +320,7 @@ def load_marker_set(path: str | os.PathLike[str], rig: Rig) -> MarkerSet:
                 raise CaptureError(
                     f"{path}: marker {name!r} must be [x, y, z] or a landmark name; got {value}"
                 )
-            points.append(_snap(rig, position[None])[0])
+            points.append(snap_to_skin(rig, position[None]).points[0])
         names.append(str(name))
     flags = {}
     for key in ("stable", "sliding"):
@@ -286,13 +330,35 @@ def load_marker_set(path: str | os.PathLike[str], rig: Rig) -> MarkerSet:
             raise CaptureError(f"{path}: {key} lists unknown marker(s) {', '.join(unknown[:5])}")
         flags[key] = np.isin(names, listed)
     marker_set = MarkerSet(
-        tuple(names), tuple(points), flags["stable"], flags["sliding"], np.zeros((len(names), 3)), str(path)
+        tuple(names),
+        tuple(points),
+        flags["stable"],
+        flags["sliding"],
+        np.zeros((len(names), 3)),
+        str(document.get("layout", path)),
+        bool(document.get("placed", False)),
     )
-    chain = [j for j in range(len(names)) if flags["sliding"][j]]
-    tangents = _contour_tangents(marker_set.positions(rig), flags["sliding"], chain)
-    return MarkerSet(
-        marker_set.names, marker_set.points, flags["stable"], flags["sliding"], tangents, str(path)
-    )
+    return with_tangents(marker_set, rig)
+
+
+def save_marker_set(markers: MarkerSet, rig: Rig, path: str | os.PathLike[str], *, note: str = "") -> Path:
+    """Write ``markers`` as a marker file (the JSON ``load_marker_set`` reads): each marker's position
+    on ``rig`` at rest, in the rig's units, its flags, its layout, whether it was placed on a
+    performer, and ``note`` (e.g. the take it was calibrated on). Written atomically."""
+    positions = markers.positions(rig).round(6).tolist()
+    document = {
+        "units": rig.units,
+        "layout": markers.layout,
+        "placed": markers.placed,
+        "note": note,
+        "markers": dict(zip(markers.names, positions, strict=True)),
+        "stable": [n for n, s in zip(markers.names, markers.stable, strict=True) if s],
+        "sliding": [n for n, s in zip(markers.names, markers.sliding, strict=True) if s],
+    }
+    path = Path(path)
+    with atomic_write(path, "w") as handle:
+        handle.write(json.dumps(document, indent=1) + "\n")
+    return path
 
 
 def marker_set(rig: Rig, layout: str | os.PathLike[str]) -> MarkerSet:

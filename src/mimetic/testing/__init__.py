@@ -232,7 +232,7 @@ def shared_data_dir() -> Path | None:
     """The shared data folder (it holds a ``README.md``), or None when absent."""
     env = os.environ.get(SHARED_DATA_ENV)
     candidates = [Path(env)] if env else []
-    candidates.append(Path(__file__).resolve().parents[3] / "shared" / "data")
+    candidates.append(Path(__file__).resolve().parents[4] / "shared" / "data")
     return next((c for c in candidates if (c / "README.md").is_file()), None)
 
 
