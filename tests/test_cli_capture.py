@@ -114,3 +114,22 @@ def test_edits_survive_a_new_solve_from_the_command_line(files, tmp_path):
     j = clip.channels.index("jaw_open")
     # the refined solve moves the base a little; the edit's displacement rides on top of it
     assert clip.evaluate(np.array([1.0]))[0, j] == pytest.approx(0.35, abs=0.01)
+
+
+def test_markers_placed_on_one_take_are_kept_for_the_next(files, tmp_path):
+    rig_file, trc, _, jaw, _ = files
+    placed, first, second = tmp_path / "actor.markers.json", tmp_path / "one.json", tmp_path / "two.json"
+    result = run_cli("capture", "solve", rig_file, trc, "--markers-out", placed, "-o", first)
+    assert result.exit_code == 0, result.output
+    document = json.loads(placed.read_text())
+    assert document["placed"] and document["layout"] == "ibug68" and len(document["markers"]) == 68
+    result = run_cli("capture", "solve", rig_file, trc, "--markers", placed, "-o", second)
+    assert result.exit_code == 0, result.output
+    a, b = load_clip(first).sample(FPS), load_clip(second).sample(FPS)
+    j = a.channels.index("jaw_open")
+    np.testing.assert_allclose(b.values[:, j], a.values[:, j], atol=0.01)
+    np.testing.assert_allclose(b.values[:, j], jaw, atol=0.02)
+    assert (
+        run_cli("capture", "solve", rig_file, trc, "--markers-out", tmp_path / "m.txt", "-o", first).exit_code
+        == 2
+    )

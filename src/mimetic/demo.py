@@ -19,9 +19,10 @@ skeleton (``animation.glb``), the same clip rendered to ``animation.mp4``, the A
 blendshapes baked from the muscle rig as a GLB (``head_arkit.glb``), and a talking head: a sentence
 lip-synced with coarticulation, blinks and saccades (``talk.clip.json``), rendered with its sound
 (``talk.mp4``, spoken by espeak-ng into ``talk.wav`` when that program is installed). Finally a
-performance capture: the default head plays the expression sequence with a turning head while its
-iBUG-68 markers are recorded in millimetres with 1 mm of noise (``capture.trc``); they are solved
-back into channels (``capture.clip.json``) and played on the first random head
+performance capture from video: the default head plays the expression sequence while its head
+turns and nods (``capture.mp4``); MediaPipe tracks it and the landmarks are solved back into
+channels with the head's motion removed (``capture.clip.json``; ``capture_compare.png`` sets the
+performed and the captured joy, surprise and anger side by side) and played on the first random head
 (``capture_retargeted.mp4``, ``capture_retargeted.glb``).
 
 Real scanned heads (ICT-FaceKit, from the shared test data) are rigged by ``examples/real_heads.py``,
@@ -161,39 +162,69 @@ def _animation(
     return files + talk + captured, notes
 
 
-CAPTURE_NOISE_MM = 1.0
+CAPTURE_TURN_DEG = (15.0, 8.0, 4.0)
+"""The demo performer's head: yaw, pitch and roll swing through these (degrees) while they act."""
+CAPTURE_READBACK = (("joy", "zygomatic_major_L"), ("surprise", "jaw_open"), ("anger", "corrugator_L"))
+"""The expressions ``capture_compare.png`` shows, each at the frame where this channel peaks."""
 
 
 def _capture(rig: Rig, other: Rig, basis, clip, out: Path, renderer: Renderer) -> list[Path]:
-    """A performance capture: ``rig`` plays ``clip`` with a turning head while a mocap system records
-    its iBUG-68 markers in millimetres, 1 mm of noise (``capture.trc``); the markers are solved back
-    into channels (``capture.clip.json``) and played on ``other`` (``capture_retargeted.mp4`` and
-    ``.glb``)."""
+    """A performance captured from video: ``rig`` plays ``clip`` while its head turns and nods
+    (``capture.mp4``); MediaPipe tracks the video and the landmarks are solved back into channels with
+    the head's motion removed (``capture.clip.json``), shown beside the truth (``capture_compare.png``)
+    and played on ``other`` (``capture_retargeted.mp4`` and ``.glb``). Without the ``[track]`` extra
+    nothing is written."""
     from mimetic.animate.clip import from_clip, save_clip
-    from mimetic.capture import Trajectories, marker_set, retarget, solve_performance, write_trajectories
-    from mimetic.engines.basis import evaluate_basis
-    from mimetic.engines.skinning import rotation_y
+    from mimetic.capture import retarget, solve_performance
+    from mimetic.capture.video import track_video
+    from mimetic.errors import MissingExtraError
     from mimetic.export.gltf import export_glb, morph_targets
+    from mimetic.rig.activations import Clip
     from mimetic.view.video import render_clip
 
-    markers = marker_set(rig, "ibug68")
-    points = markers.positions(rig, evaluate_basis(basis, clip.values))  # (f, 68, 3), rig units
-    pivot = rig.bone("head").head
-    turn = 0.25 * np.sin(np.linspace(0.0, 2 * np.pi, clip.n_frames))
-    for t, angle in enumerate(turn):
-        points[t] = (points[t] - pivot) @ rotation_y(angle).T + pivot
-    millimetres = points * (10.0 if rig.units == "cm" else 1.0)
-    noise = np.random.default_rng(0).normal(scale=CAPTURE_NOISE_MM / np.sqrt(3), size=points.shape)
-    take = Trajectories(markers.names, millimetres + noise, clip.fps, "mm", source="capture.trc")
-    files = [write_trajectories(take, out / "capture.trc")]
-    performance = solve_performance(rig, take, basis=basis, markers=markers, regularization=0.05)
-    files.append(save_clip(from_clip(performance.clip), out / "capture.clip.json"))
+    t = np.arange(clip.n_frames) / clip.fps
+    values = clip.values.copy()
+    for name, degrees, hz in zip(
+        ("head_yaw", "head_pitch", "head_roll"), CAPTURE_TURN_DEG, (0.3, 0.45, 0.2), strict=True
+    ):
+        values[:, rig.channel_index(name)] = (
+            np.radians(degrees) * np.sin(2 * np.pi * hz * t) * np.clip(t - 0.3, 0, 1)
+        )
+    performed = Clip(clip.channels, values, clip.fps)
+    video = render_clip(rig, performed, out / "capture.mp4", basis=basis, size=512, renderer=renderer)
+    try:
+        tracked = track_video(video)
+    except MissingExtraError:
+        return [video]
+    performance = solve_performance(rig, tracked, basis=basis)
+    files = [video, save_clip(from_clip(performance.clip), out / "capture.clip.json")]
+    files.append(_compare(rig, basis, performed, performance.clip, out / "capture_compare.png", renderer))
     played = retarget(performance.clip, other)
     files.append(render_clip(other, played, out / "capture_retargeted.mp4", size=512, renderer=renderer))
     files.append(
         export_glb(other, out / "capture_retargeted.glb", morph_targets=morph_targets(other), clip=played)
     )
     return files
+
+
+def _compare(rig: Rig, basis, truth, solved, path: Path, renderer: Renderer) -> Path:
+    """The performed face (top row) above the captured one (bottom), head motion removed, where each of
+    ``CAPTURE_READBACK``'s channels peaks."""
+    from mimetic.engines.basis import evaluate_basis
+    from mimetic.view.look import rig_look
+    from mimetic.view.sheet import contact_sheet, save_png
+    from mimetic.view.sheets import face_camera
+
+    camera, look = face_camera(rig), rig_look(rig)
+    frames = [int(np.argmax(truth.select([channel]).values[:, 0])) for _, channel in CAPTURE_READBACK]
+    tiles = []
+    for label, clip in (("performed", truth), ("captured", solved)):
+        for (name, _), frame in zip(CAPTURE_READBACK, frames, strict=True):
+            pose = clip.select(basis.channels).values[frame]  # no head_*: a basis has no rigid turn
+            vertices = evaluate_basis(basis, pose)
+            image = renderer.render(rig.mesh.with_vertices(vertices), camera, size=(256, 256), look=look)
+            tiles.append((f"{name}, {label}", image))
+    return save_png(contact_sheet(tiles, columns=len(CAPTURE_READBACK)), path)
 
 
 def _talk(rig: Rig, basis, out: Path, renderer: Renderer) -> tuple[list[Path], list[str]]:

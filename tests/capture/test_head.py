@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimetic.capture.head import HeadMotion, head_motion, head_weights, nearest_true
+from mimetic.capture.head import MODEL_ERROR, HeadMotion, head_motion, head_weights, nearest_true
 from mimetic.engines.skinning import rotation_x, rotation_y, rotation_z
 from mimetic.fit.similarity import Similarity
 
@@ -66,7 +66,7 @@ def test_head_weights_trust_the_markers_the_expression_moves_least():
     motion = np.array([[0.0, 0.1, 1.0, 0.0]])  # cm: still, a little, much, unseen
     w = head_weights(usable, motion, noise=0.03)
     assert w[0, 0] > w[0, 1] > w[0, 2] > 0 and w[0, 3] == 0
-    np.testing.assert_allclose(w[0, 0] / w[0, 2], (0.03**2 + 1.0) / 0.03**2)
+    np.testing.assert_allclose(w[0, 0] / w[0, 2], (0.03**2 + MODEL_ERROR**2) / 0.03**2)
 
 
 def test_contour_markers_constrain_the_head_only_across_their_contour():

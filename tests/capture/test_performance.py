@@ -365,3 +365,40 @@ def test_a_jaw_line_alone_still_gives_the_head(rig, baked, ibug):
     assert performance.head.fitted.all()
     head = [rig.channel_index(n) for n in ("head_yaw", "head_pitch", "head_roll")]
     assert np.degrees(np.abs(performance.clip.values[:, head] - head_angles(60)).max()) < 2.0
+
+
+def test_a_wide_jaw_on_clean_markers_is_not_taken_for_an_outlier(rig, baked, ibug):
+    """Outliers are judged against the capture's noise and gross errors, never against what the rig
+    fits less well: a jaw opened to its limit, captured cleanly, loses no marker."""
+    rng = np.random.default_rng(13)
+    f = 120
+    values = np.zeros((f, len(rig.channels)))
+    t = np.arange(f) / FPS
+    jaw = rig.channel("jaw_open").maximum
+    values[:, rig.channel_index("jaw_open")] = jaw * np.clip((t - 0.5) / 0.8, 0.0, 1.0)
+    values[:, rig.channel_index("zygomatic_major_L")] = np.clip((t - 0.7) / 0.8, 0.0, 1.0)
+    traj, _ = capture(
+        rig, baked, ibug, values, angles=head_angles(f), rng=rng, noise_mm=0.3, drop=0.0, spikes=0.0
+    )
+    performance = solve_performance(rig, traj, basis=baked)
+    assert not performance.outliers.any()
+    j = rig.channel_index("jaw_open")
+    assert np.abs(performance.clip.values[:, j] - values[:, j]).max() < 0.03
+
+
+def test_a_marker_swapped_with_its_neighbour_for_a_second_is_rejected(rig, baked, ibug):
+    """A labelling error: two markers 1.6 cm apart trade names for a second. Each sample is then far from
+    any face the rig makes, so both are left out there and the jaw is still recovered."""
+    rng = np.random.default_rng(14)
+    names = ("jaw_open", "zygomatic_major_L", "zygomatic_major_R")
+    values = smooth_clip(rig, names, 180, rng)
+    traj, _ = capture(rig, baked, ibug, values, angles=head_angles(180), rng=rng, drop=0.0, spikes=0.0)
+    a, b = ibug.names.index("ibug68_49"), ibug.names.index("ibug68_55")  # the mouth corners
+    positions = traj.positions.copy()
+    positions[60:120, [a, b]] = positions[60:120, [b, a]]
+    swapped = Trajectories(traj.names, positions, FPS, "mm")
+    performance = solve_performance(rig, swapped, basis=baked, active=names)
+    rejected = performance.outliers[60:120][:, [a, b]]
+    assert rejected.mean() > 0.9 and performance.outliers[:55].sum() == 0
+    j = rig.channel_index("jaw_open")
+    assert np.abs(performance.clip.values[:, j] - values[:, j]).max() < 0.05

@@ -52,7 +52,14 @@ from mimetic.rig.model import Rig, coerce_surface_point
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MEDIAPIPE_NAMES", "N_FACE_POINTS", "mediapipe_markers", "track_video"]
+__all__ = [
+    "MEDIAPIPE_NAMES",
+    "N_FACE_POINTS",
+    "face_landmarks",
+    "mediapipe_markers",
+    "track_video",
+    "video_frames",
+]
 
 N_FACE_POINTS = 468
 """FaceMesh points on the face surface (0..467); 468..477 are the irises, inside the eyes."""
@@ -322,6 +329,53 @@ def _yaw_rad(face: np.ndarray, width: int, height: int) -> float:
     right, left = zip(*_SIDE_PAIRS, strict=True)
     across = (face[list(left)] - face[list(right)]).sum(axis=0) * (width, height, width)  # (3,) px
     return math.atan2(abs(across[2]), math.hypot(across[0], across[1]))
+
+
+@contextlib.contextmanager
+def video_frames(
+    source: str | os.PathLike[str], *, fps: float | None = None, max_frames: int | None = None
+) -> Iterator[tuple[Iterator[np.ndarray], float, tuple[int, int]]]:
+    """A video file's frames as a player shows them, for live capture: yields (the frames, read-only
+    (h, w, 3) uint8 RGB at most ``WORK_SIZE_PX`` on their long side, on a constant grid; their frame
+    rate; their (w, h)). The frames come as ffmpeg decodes them (not read ahead), so a consumer
+    slower than the video sees each one late, as from a camera.
+
+    Raises
+    ------
+    CaptureError
+        The file is missing or not a readable video, or gives no frame rate (pass ``fps``).
+    """
+    path = Path(source)
+    if not path.is_file():
+        raise CaptureError(f"{path}: no such video file")
+    stream = _probe(path)
+    work = _work_size(*stream.display_size)
+    rate = _grid_rate(path, stream, fps)
+    with _decoded(path, stream, rate, work, max_frames) as frames:
+        yield frames, float(rate), work
+
+
+@contextlib.contextmanager
+def face_landmarks(
+    *, max_yaw_rad: float = MAX_YAW_RAD
+) -> Iterator[Callable[[np.ndarray], np.ndarray | None]]:
+    """FaceMesh in video mode for live capture: yields ``track(image)`` → the largest face's 478
+    landmarks as (478, 2) pixels of ``image`` (x right, y down), or None when there is no face or it
+    is turned further than ``max_yaw_rad`` (see ``track_video``; no FaceDetection gate, which would
+    cost a third of the frame)."""
+    with video_face_mesh(max_faces=MAX_FACES) as mesh:
+
+        def track(image: np.ndarray) -> np.ndarray | None:
+            height, width = image.shape[:2]
+            faces = mesh(image)
+            if not len(faces):
+                return None
+            face, _ = _largest(faces, width, height)
+            if _yaw_rad(face, width, height) > max_yaw_rad:
+                return None
+            return face[:, :2] * (width, height)
+
+        yield track
 
 
 def _frame_list(frames: Sequence[int]) -> str:

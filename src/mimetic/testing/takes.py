@@ -270,12 +270,8 @@ def generated_performer(head: Head, ict: Performer, fit) -> Performer:
     deltas[:, : head.n_skin] = moved
     mesh = head.mesh
     names = list(IBUG68)
-    points = [head.landmarks[n] for n in names]
-    rows = np.repeat(np.arange(68), 3)
-    cols = np.concatenate([mesh.faces[p.face] for p in points])
-    ibug = sp.csr_matrix(
-        (np.concatenate([p.bary for p in points]), (rows, cols)), shape=(68, mesh.n_vertices)
-    )
+    vertices = [int(head.landmarks[n]) for n in names]  # a generated head's landmarks are vertices
+    ibug = sp.csr_matrix((np.ones(68), (np.arange(68), vertices)), shape=(68, mesh.n_vertices))
     positions = ibug @ mesh.vertices
     skin_vertices = np.arange(head.n_skin)
     colors = np.tile(np.array(SKIN, np.float32), (mesh.n_vertices, 1))
