@@ -24,7 +24,7 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check src tests benchmarks examples
 
 bench: $(STAMP)
-	for b in render engines basis rig export speech capture batch view; do $(BIN)/python benchmarks/bench_$$b.py || exit 1; done
+	for b in render engines basis rig export speech capture batch view live; do $(BIN)/python benchmarks/bench_$$b.py || exit 1; done
 
 clean:
 	rm -rf $(VENV) mimetic-demo

@@ -1317,6 +1317,14 @@ def view(
         "--landmarks",
         help="Where picked landmarks are saved (default: beside SOURCE).",
     ),
+    capture: Path | None = typer.Option(
+        None,
+        "--capture",
+        metavar="VIDEO",
+        help="Play a video's face on the rig as it arrives, at the video's pace: the first 0.5 s "
+        "calibrate (hold a neutral face). A camera device such as /dev/video0 is passed on the same "
+        "way (untested: no camera was at hand). Needs the [track] extra.",
+    ),
 ) -> None:
     """Open RIG in a local web page: sliders, expressions, keys and playback, landmark picking.
 
@@ -1328,29 +1336,48 @@ def view(
       mimetic view head.mrig
       mimetic view head.mrig --clip speech.clip.json --audio speech.wav --port 8081
       mimetic view scan.obj --landmarks scan.json
+      mimetic view head.mrig --capture take.mp4
     """
     import time
 
-    from mimetic.view.web import PREPARE_NOTE, start
+    from mimetic.view.web import PREPARE_NOTE, check_capture, start
 
-    if engine.value in PREPARE_NOTE:
-        stderr.print(f"preparing the {engine.value} engine: {PREPARE_NOTE[engine.value]}, once")
     for given, option in ((clip, "--clip"), (audio, "--audio")):
         if given is not None and not given.is_file():
             raise MimeticError(f"{option} {given}: no such file")
+    if capture is not None:
+        check_capture(source, capture)
+    if engine.value in PREPARE_NOTE:
+        stderr.print(f"preparing the {engine.value} engine: {PREPARE_NOTE[engine.value]}, once")
     viewer = start(
-        source, host=host, port=port, engine=engine.value, clip=clip, audio=audio, landmarks_out=landmarks
+        source,
+        host=host,
+        port=port,
+        engine=engine.value,
+        clip=clip,
+        audio=audio,
+        landmarks_out=landmarks,
+        capture=capture,
     )
     if viewer.error:
         stderr.print(Text.assemble(("error: ", "bold red"), viewer.error))
         stderr.print("the page shows the error too; Ctrl-C to stop")
     shown = "localhost" if host in ("127.0.0.1", "::1") else host
     stdout.print(f"mimetic view: http://{shown}:{viewer.server.get_port()}  (Ctrl-C to stop)")
+    told = False  # the capture's end was said
     try:
         while True:
-            time.sleep(1.0)
+            time.sleep(0.25 if viewer.live is not None else 1.0)
+            status = viewer.live.status if viewer.live is not None else None
+            if status is not None and status.done and not told:
+                told = True
+                if status.state == "failed":
+                    stderr.print(Text.assemble(("error: ", "bold red"), status.error))
+                    stderr.print("the page shows the error too; Ctrl-C to stop")
+                else:
+                    stderr.print(f"live capture {status.text()}")
     finally:
-        viewer.server.stop()
+        viewer.stop()
 
 
 @command()

@@ -417,16 +417,14 @@ def solve_performance(
 
     # 2. smoothing: spikes, gaps, the capture's noise (capture units)
     step("smooth", 0, 1)
-    smoothed = smooth_points(
-        points, trajectories.fps, cutoff_hz, robust=robust, size=rig.scale * _size_ratio(rough, markers, rig)
-    )
+    ratio = _size_ratio(rough, markers, rig)  # capture units per rig unit, roughly
+    smoothed = smooth_points(points, trajectories.fps, cutoff_hz, robust=robust, size=rig.scale * ratio)
     points, outliers = smoothed.points, smoothed.outliers
     step("smooth", 1, 1)
 
     # 3. calibration and the performer's markers
     step("calibrate", 0, 1)
     neutral = neutral_points(points, outliers, neutral_frame, trajectories.fps)
-    ratio = _size_ratio(rough, markers, rig)  # capture units per rig unit, roughly
     window = max(1, round(NEUTRAL_WINDOW_S * trajectories.fps))
     calibration = calibrate_performer(
         rig,
@@ -454,7 +452,11 @@ def solve_performance(
         sparsity=sparsity,
         skin=skin_gram(rig, basis, free_index) if shape_prior != 0 else None,
     )
-    motion = SHAPE_MOTION_REL * rig.scale
+    usable = np.isfinite(points).all(axis=2) & ~outliers & calibration.usable
+    trust = usable.astype(np.float64)
+    flat_deltas = deltas.reshape(len(free_index), 3 * m)
+    tau = SHAPE_MOTION_REL * rig.scale
+    fixed_scale = calibration.units != "px"
 
     def shape_weight(residual: np.ndarray | None) -> float:
         """ν: fixed, or (σ_e / τ)² with σ_e the solve's misfit per coordinate (``residual`` (f, m)),
@@ -462,12 +464,7 @@ def solve_performance(
         if shape_prior is not None:
             return shape_prior
         misfit = np.zeros(0) if residual is None else residual[usable]
-        return (max(float(np.median(misfit)) / CHI_MEDIAN[3] if misfit.size else 0.0, sigma) / motion) ** 2
-
-    flat_deltas = deltas.reshape(len(free_index), 3 * m)
-    usable = np.isfinite(points).all(axis=2) & ~outliers & calibration.usable
-    trust = usable.astype(np.float64)
-    fixed_scale = calibration.units != "px"
+        return (max(float(np.median(misfit)) / CHI_MEDIAN[3] if misfit.size else 0.0, sigma) / tau) ** 2
 
     def realign(motion: np.ndarray, model: np.ndarray) -> HeadMotion:
         """The head fitted to the markers, each trusted by how far the expression moves it

@@ -247,6 +247,7 @@ def _place(
     rays = camera.rays(np.nan_to_num(pixels)) @ R  # (m, 3) in the rig's frame (Rᵀ d)
     reach = RAY_REACH_REL * rig.scale
     points, miss = list(markers.points), np.full(len(layout), np.nan)
+    hits = np.full((len(layout), 3), np.nan)  # each ray's point at the skin vertex nearest it
     for j in np.flatnonzero(seen):
         near = facing & (np.linalg.norm(vertices - layout[j], axis=1) < reach)
         if not near.any():
@@ -256,10 +257,10 @@ def _place(
         off = np.linalg.norm(rel - along[:, None] * rays[j], axis=1)
         best = int(np.argmin(off))
         miss[j] = off[best]
-        if off[best] <= OFF_SKIN_REL * rig.scale:
-            points[j] = snap_to_skin(
-                rig, (origin + along[best] * rays[j])[None], layout_normals[j : j + 1]
-            ).points[0]
+        hits[j] = origin + along[best] * rays[j]
+    onto = np.flatnonzero(miss <= OFF_SKIN_REL * rig.scale)  # nan compares False
+    for j, point in zip(onto, snap_to_skin(rig, hits[onto], layout_normals[onto]).points, strict=True):
+        points[j] = point
     placed = with_tangents(markers.replace(points=tuple(points), placed=True), rig)
     return placed, np.linalg.norm(placed.positions(rig) - layout, axis=1), miss
 

@@ -146,7 +146,7 @@ class LiveSolver:
         self.columns = np.array([rig.channel_index(basis.channels[j]) for j in self.free])
         self.head_columns = [rig.channel_index(n) if n in rig.channel_names else -1
                              for n in ("head_yaw", "head_pitch", "head_roll")]  # fmt: skip
-        self.values = np.zeros(len(rig.channels))
+        self.values = np.array([ch.default for ch in rig.channels])  # until the first solve
         self.filtered: np.ndarray | None = None
         self.speed = np.zeros((markers.n_markers, 2))
         self.stray = np.zeros(markers.n_markers)
@@ -197,12 +197,14 @@ class LiveSolver:
             raise CaptureError(f"push takes ({self.markers.n_markers}, 2) landmarks in pixels; got {u.shape}")
         seen = np.isfinite(u).all(axis=1)
         if not self.ready:
-            if seen.sum() >= MIN_LANDMARKS:
+            enough = seen.sum() >= MIN_LANDMARKS
+            if enough:
                 self.collected.append(u)
-                self._filter(u)
-            if len(self.collected) >= self.calibration_frames:
-                self._calibrate()
-            return LiveFrame(self.values.copy(), self.ready, not seen.any(), time.perf_counter() - start)
+            if len(self.collected) < self.calibration_frames:
+                if enough:
+                    self._filter(u)
+                return LiveFrame(self.values.copy(), False, not enough, time.perf_counter() - start)
+            self._calibrate()  # this frame completes the neutral: it is solved below as the first
         u = self._filter(u)[None]  # (1, m, 2)
         usable = np.isfinite(u).all(axis=-1) & self.calibration.usable[None]
         if usable.sum() < MIN_LANDMARKS:

@@ -29,6 +29,7 @@ import logging
 import math
 import os
 import re
+import stat
 import subprocess
 import tempfile
 import time
@@ -172,9 +173,22 @@ def _parse_header(path: Path, text: str) -> _Stream:
     )
 
 
+def _input(path: Path) -> list[str]:
+    """ffmpeg's input arguments for ``path``: a file, or a camera device (``/dev/video0``: Video4Linux)."""
+    return ["-f", "v4l2", "-i", str(path)] if _is_device(path) else ["-i", f"file:{path}"]
+
+
+def _is_device(path: Path) -> bool:
+    """``path`` is a character device, as a camera (``/dev/video0``) is."""
+    try:
+        return stat.S_ISCHR(os.stat(path).st_mode)
+    except OSError:
+        return False
+
+
 def _probe(path: Path) -> _Stream:
     """``_Stream`` of the video at ``path``, from the header ``ffmpeg -i`` prints (it needs no ffprobe)."""
-    command = [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", f"file:{path}"]
+    command = [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-nostdin", *_input(path)]
     try:
         run = subprocess.run(command, stdin=subprocess.DEVNULL, capture_output=True, timeout=PROBE_TIMEOUT_S)
     except subprocess.TimeoutExpired:
@@ -237,7 +251,7 @@ def _decoded(
     command = [
         imageio_ffmpeg.get_ffmpeg_exe(),
         "-hide_banner", "-nostdin", "-loglevel", "error",
-        "-i", f"file:{path}",
+        *_input(path),
         "-map", f"0:{stream.index}", "-vf", filters,
         *(["-frames:v", str(max_frames)] if max_frames is not None else []),
         "-f", "rawvideo", "-pix_fmt", "rgb24", "pipe:1",
@@ -335,10 +349,12 @@ def _yaw_rad(face: np.ndarray, width: int, height: int) -> float:
 def video_frames(
     source: str | os.PathLike[str], *, fps: float | None = None, max_frames: int | None = None
 ) -> Iterator[tuple[Iterator[np.ndarray], float, tuple[int, int]]]:
-    """A video file's frames as a player shows them, for live capture: yields (the frames, read-only
-    (h, w, 3) uint8 RGB at most ``WORK_SIZE_PX`` on their long side, on a constant grid; their frame
-    rate; their (w, h)). The frames come as ffmpeg decodes them (not read ahead), so a consumer
-    slower than the video sees each one late, as from a camera.
+    """A video file's frames as a player shows them, or a camera's (a Video4Linux device such as
+    ``/dev/video0``, read with ffmpeg's ``v4l2`` input; not tested here, where there is no camera),
+    for live capture: yields (the frames, read-only (h, w, 3) uint8 RGB at most ``WORK_SIZE_PX`` on
+    their long side, on a constant grid; their frame rate; their (w, h)). The frames come as ffmpeg
+    decodes them (not read ahead), so a consumer slower than the video sees each one late, as from a
+    camera.
 
     Raises
     ------
@@ -346,8 +362,8 @@ def video_frames(
         The file is missing or not a readable video, or gives no frame rate (pass ``fps``).
     """
     path = Path(source)
-    if not path.is_file():
-        raise CaptureError(f"{path}: no such video file")
+    if not (path.is_file() or _is_device(path)):
+        raise CaptureError(f"{path}: no such video file or camera device")
     stream = _probe(path)
     work = _work_size(*stream.display_size)
     rate = _grid_rate(path, stream, fps)

@@ -13,14 +13,22 @@ library plus a little more ``jaw_open`` on the channel slider reads as both. ``T
 keys a user sets (or a loaded clip, which key edits then reshape with the B-spline displacement of
 ``KeyframeClip.edit``). ``Deformers`` prepares each engine once and poses the mesh by the engine
 itself when that is interactive, else by its baked basis. ``pick`` intersects a click's ray with
-the mesh, for landmark picking.
+the mesh, for landmark picking. ``LivePlayback`` plays a video (or camera) on the rig as it arrives,
+solved frame by frame by ``capture.stream.live_frames``.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
+import math
+import os
 import tempfile
 import threading
+import time
+from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +40,10 @@ from mimetic.animate.expressions import ExpressionLibrary, expression_pose, load
 from mimetic.animate.facs import action_units, au_values
 from mimetic.engines import ENGINES, make_engine
 from mimetic.engines.bake import bake, evaluate_rigid
+from mimetic.errors import MimeticError, MissingExtraError, install_hint
 from mimetic.rig.model import Rig
+
+log = logging.getLogger(__name__)
 
 SIDES = (("_L", "_R"), ("Left", "Right"))
 """Name endings of a left/right pair (rig channels and FACS keys; ARKit names)."""
@@ -355,3 +366,274 @@ class Picks:
     def positions(self, vertices: np.ndarray) -> dict[str, np.ndarray]:
         """Each picked landmark's position (3,) on ``vertices`` (n, 3)."""
         return {name: bary @ vertices[self.faces[face]] for name, (face, bary) in self.points.items()}
+
+
+# --------------------------------------------------------------------------- live capture
+
+LIVE_STATES = {
+    "starting": "starting: preparing the solve (the rig's basis, the tracker's points on the face)",
+    "calibrating": "calibrating — hold a neutral face",
+    "live": "live",
+    "lost": "face lost — holding the last pose",
+    "finished": "finished",
+    "stopped": "stopped",
+    "failed": "error",
+}
+"""What a live capture can be doing, as the page says it."""
+
+LIVE_STATUS_INTERVAL_S = 0.25
+"""The live status is reported at once when its state changes, else at most this often: a line
+rewritten 30 times a second tells no more than one rewritten 4 times."""
+
+LIVE_SOLVE_WINDOW = 30
+"""The status's ms per frame is the median solve time of this many latest frames (1 s at 30 fps)."""
+
+LIVE_LATE_S = 0.1
+"""A capture is behind when its frame comes this long after the source's clock says it should. It
+starts behind: the frame that completes the calibration takes about 0.8 s on the default head
+(benchmarks/bench_live.py), and ``live_frames`` drops no frame to catch up."""
+
+LIVE_CATCH_UP_FPS = 10.0
+"""While a capture is behind, at most this many frames a second are shown (the others are solved
+but not drawn), so that drawing takes less of the time the capture needs to catch up."""
+
+LIVE_STOP_TIMEOUT_S = 10.0
+"""How long ``LivePlayback.stop`` waits for its thread: one frame's tracking and solve, or ffmpeg's
+exit (the bake of the rig is cut short at its next channel)."""
+
+
+@dataclass(frozen=True)
+class LiveStatus:
+    """Where a live capture is.
+
+    ``state`` is a key of ``LIVE_STATES``; ``frames`` the frames pushed so far; ``time_s`` the
+    source's time of the latest one, seconds; ``solve_ms`` the median solve time of the latest
+    ``LIVE_SOLVE_WINDOW`` frames, milliseconds, without tracking (NaN before the first); ``behind_s``
+    how far the latest frame came after the source's clock said it should, seconds; ``error`` the
+    one-line reason when ``state`` is "failed".
+    """
+
+    state: str = "starting"
+    frames: int = 0
+    time_s: float = 0.0
+    solve_ms: float = math.nan
+    behind_s: float = 0.0
+    error: str | None = None
+
+    @property
+    def done(self) -> bool:
+        """The capture has ended (finished, failed or stopped)."""
+        return self.state in ("finished", "failed", "stopped")
+
+    def text(self) -> str:
+        """One line: the state, the frame count and the solve's ms per frame, or the error."""
+        if self.state == "failed":
+            return f"error: {self.error}"
+        parts = [LIVE_STATES[self.state]]
+        if self.frames:
+            parts.append(f"{self.frames} frames ({self.time_s:.1f} s)")
+        if math.isfinite(self.solve_ms):
+            parts.append(f"solve {self.solve_ms:.1f} ms per frame")
+        if self.behind_s > LIVE_LATE_S and not self.done:
+            parts.append(f"{self.behind_s:.1f} s behind the source")
+        return " · ".join(parts)
+
+
+class _Stopped(Exception):
+    """Raised inside the live thread to cut it short when ``stop`` is called."""
+
+
+def check_live_source(source: str | os.PathLike[str]) -> None:
+    """Fail now, before anything is served, when ``source`` cannot be captured live.
+
+    Raises ``MissingExtraError`` when mediapipe (extra [track]) is missing and ``CaptureError`` when
+    ``source`` is neither a file nor a device, or ffmpeg cannot decode a frame from it. A video
+    without a face is only found by playing it (``LivePlayback`` reports it).
+    """
+    from mimetic.capture.trajectories import CaptureError
+    from mimetic.capture.video import video_frames
+
+    try:
+        import mediapipe  # noqa: F401
+    except ImportError as error:
+        raise MissingExtraError(
+            f"live capture tracks the face with mediapipe, in the optional extra [track]: "
+            f"{install_hint('track')} (importing mediapipe failed: {error})"
+        ) from None
+    if not Path(source).exists():
+        raise CaptureError(f"{source}: no such video file or camera device")
+    with video_frames(source, max_frames=1) as (frames, _, _):
+        if next(frames, None) is None:
+            raise CaptureError(f"{source}: the video holds no frames")
+
+
+class LivePlayback:
+    """A video file or camera device played on a rig as it arrives (extra [track]).
+
+    ``start()`` runs a background thread that:
+
+    1. bakes the rig's wire engine (the basis the live solve works against), unless ``basis`` is
+       given;
+    2. runs ``capture.stream.live_frames(rig, basis, source, realtime=True, **options)``: frames come
+       at the source's pace; the first ``CALIBRATION_S`` calibrate (the performer holds a neutral
+       face); each later frame with a face is solved and its values go to ``show``. Frames still
+       calibrating or without a face are not shown, so the face keeps the last pose; while the
+       capture is behind the source's clock (``LIVE_LATE_S``) only ``LIVE_CATCH_UP_FPS`` frames a
+       second are shown (the last one always is);
+    3. ends "finished", or "failed" when the source cannot be read, mediapipe is missing, or no
+       frame calibrated (no face in the video, or too short a one).
+
+    ``report`` hears of every change of state, and of the frames at most every
+    ``LIVE_STATUS_INTERVAL_S``; ``status`` is the latest. Nothing is raised or printed from the
+    thread: an error is ``status.error``, one line. ``stop()`` ends the thread (and ffmpeg); no
+    callback runs once it has returned.
+
+    Parameters
+    ----------
+    rig : Rig
+    source : str or path
+        A video file, or a camera device such as ``/dev/video0`` (passed on to ``live_frames``).
+    show : callable(time_s, values)
+        Called from the thread with the source's time of the frame (s) and its pose, (c,) float64
+        in ``rig.channel_names`` order: the solved channels and the head's turn (``head_*``).
+    report : callable(LiveStatus)
+        Called from the thread.
+    basis : Basis, optional
+        The baked rig to solve against; by default the wire engine's, baked in the thread.
+    **options
+        More keywords for ``live_frames`` and its ``LiveSolver`` (``fov_deg``, ``calibration_s`` …).
+    """
+
+    def __init__(
+        self,
+        rig: Rig,
+        source: str | os.PathLike[str],
+        *,
+        show: Callable[[float, np.ndarray], None],
+        report: Callable[[LiveStatus], None],
+        basis=None,
+        **options,
+    ) -> None:
+        self.rig, self.source, self.basis, self.options = rig, str(source), basis, options
+        self.show, self.report = show, report
+        self.status = LiveStatus()
+        self._halt = threading.Event()
+        self._emitting = threading.Lock()  # held while a callback runs; stop() waits for it
+        self._reported = -math.inf
+        self._thread: threading.Thread | None = None
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self) -> None:
+        """Start the capture's thread (once)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="mimetic-live-capture", daemon=True)
+            self._thread.start()
+
+    def stop(self, timeout_s: float = LIVE_STOP_TIMEOUT_S) -> None:
+        """End the capture and wait up to ``timeout_s`` for its thread; no callback runs afterwards."""
+        with self._emitting:
+            self._halt.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout_s)
+            if self._thread.is_alive():  # a camera that stopped sending: the daemon thread is left
+                log.warning("the live capture did not stop within %g s", timeout_s)
+
+    def wait(self, timeout_s: float | None = None) -> LiveStatus:
+        """Wait for the capture to end (or ``timeout_s``); the status then."""
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+        return self.status
+
+    # ---- the thread
+
+    def _emit(self, callback: Callable, *args) -> None:
+        with self._emitting:
+            if not self._halt.is_set():
+                callback(*args)
+
+    def _update(self, status: LiveStatus) -> None:
+        """Make ``status`` the latest; report it on a change of state or after the interval."""
+        changed = status.state != self.status.state
+        self.status = status
+        now = time.perf_counter()
+        if changed or now - self._reported >= LIVE_STATUS_INTERVAL_S:
+            self._reported = now
+            self._emit(self.report, status)
+
+    def _check_stop(self, *_) -> None:
+        if self._halt.is_set():
+            raise _Stopped
+
+    def _run(self) -> None:
+        try:
+            self._update(LiveStatus())
+            self._play()
+        except _Stopped:
+            s = self.status
+            self.status = LiveStatus("stopped", s.frames, s.time_s, s.solve_ms, s.behind_s)
+        except MimeticError as error:  # unreadable source, no face, mediapipe missing
+            self._update(self._failed(str(error)))
+        except OSError as error:
+            self._update(self._failed(f"{self.source}: {error.strerror or error}"))
+        except Exception as error:  # a bug: said in the page; the traceback goes to the debug log
+            log.debug("live capture of %s failed", self.source, exc_info=True)
+            bug = f"unexpected {type(error).__name__}: {error}; this is a bug in mimetic, please report it"
+            self._update(self._failed(bug))
+
+    def _failed(self, message: str) -> LiveStatus:
+        s = self.status
+        return LiveStatus("failed", s.frames, s.time_s, s.solve_ms, s.behind_s, " ".join(message.split()))
+
+    def _play(self) -> None:
+        from mimetic.capture.stream import CALIBRATION_S, live_frames
+        from mimetic.capture.trajectories import CaptureError
+
+        # 1. the basis to solve against
+        basis = self.basis
+        if basis is None:
+            basis = bake(make_engine(self.rig, "wire"), progress=self._check_stop).basis
+        self._check_stop()
+        # 2. the frames, at the source's pace
+        solves: deque[float] = deque(maxlen=LIVE_SOLVE_WINDOW)  # seconds
+        count, faces, calibrated = 0, 0, False
+        unshown: tuple[float, np.ndarray] | None = None  # the latest solved frame, when skipped
+        begin, shown = None, -math.inf  # perf_counter at the source's time 0, and at the last show
+        frames = live_frames(self.rig, basis, self.source, realtime=True, **self.options)
+        with contextlib.closing(frames):  # closing it stops ffmpeg and FaceMesh
+            for time_s, frame in frames:
+                self._check_stop()
+                now = time.perf_counter()
+                begin = now - time_s if begin is None else begin
+                behind_s = now - begin - time_s
+                count, faces, calibrated = count + 1, faces + (not frame.lost), calibrated or frame.ready
+                if frame.ready and not frame.lost:
+                    solves.append(frame.seconds)
+                    unshown = (time_s, frame.values)
+                    if behind_s <= LIVE_LATE_S or now - shown >= 1.0 / LIVE_CATCH_UP_FPS:
+                        self._emit(self.show, *unshown)
+                        unshown, shown = None, now
+                state = "lost" if frame.lost else "live" if frame.ready else "calibrating"
+                solve_ms = 1e3 * float(np.median(solves)) if solves else math.nan
+                self._update(LiveStatus(state, count, time_s, solve_ms, behind_s))
+        # 3. the end
+        if unshown is not None:
+            self._emit(self.show, *unshown)
+        if count == 0:
+            raise CaptureError(f"{self.source}: the video holds no frames")
+        if not calibrated:
+            needed = self.options.get("calibration_s", CALIBRATION_S)
+            if faces == 0:
+                raise CaptureError(
+                    f"{self.source}: no face found in any of its {count} frames; the video must show one "
+                    "face, large and from the front"
+                )
+            raise CaptureError(
+                f"{self.source}: the video ended before the calibration: only {faces} of its {count} "
+                f"frames show a face, and the calibration needs {needed:g} s of them (the performer "
+                "holding a neutral face) first"
+            )
+        s = self.status
+        self._update(LiveStatus("finished", count, s.time_s, s.solve_ms, s.behind_s))

@@ -5,7 +5,9 @@ thesis's animation interface (seed-000 §6): channel sliders grouped by region, 
 and ARKit sliders, the expression library with an intensity, a timeline with keys and playback
 (clips from ``mimetic speak`` or ``mimetic capture`` play with their sound), landmark picking that
 writes a landmarks file for ``mimetic rig``, and GLB / PNG / clip JSON downloads. A plain mesh
-(.obj .ply .stl .glb) opens for landmark picking only.
+(.obj .ply .stl .glb) opens for landmark picking only. With ``capture`` (``mimetic view --capture``)
+a video's (or a camera's) face plays on the rig as it arrives, solved frame by frame
+(``session.LivePlayback``), under a status line.
 
 Why viser: its browser client is one bundled file that works offline, and a vertex update reaches
 the browser in ~19 ms (../shared/research §D); gradio needs the network and resends whole meshes,
@@ -19,6 +21,7 @@ import base64
 import contextlib
 import errno
 import io
+import os
 import re
 import socket
 import threading
@@ -154,6 +157,16 @@ def check_port(host: str, port: int) -> None:
             raise ViewError(f"cannot listen on {host}:{port}: {error.strerror or error}") from None
 
 
+def check_capture(source: Path, capture: str | os.PathLike[str]) -> None:
+    """Fail before serving when ``capture`` cannot play on ``source``: a mesh rather than a rig, or
+    ``session.check_live_source``'s reasons (mediapipe missing, no such file or device, not a video)."""
+    from mimetic.view.session import check_live_source
+
+    if Path(source).suffix.lower() in MESH_SUFFIXES:
+        raise ViewError(f"--capture plays on a rig, and {Path(source).name} is a mesh; pass a .mrig rig")
+    check_live_source(capture)
+
+
 def _viser():
     try:
         import viser
@@ -180,7 +193,9 @@ class Viewer:
 
     ``server`` is the viser server; ``source`` the .mrig rig (or a mesh, for picking); ``engine``
     the engine shown first; ``clip``/``audio`` a clip JSON (and its sound) loaded on the timeline;
-    ``landmarks_out`` where picked landmarks are written (default: beside ``source``).
+    ``landmarks_out`` where picked landmarks are written (default: beside ``source``); ``capture`` a
+    video file or camera device played live on the rig (``session.LivePlayback``, given
+    ``capture_options``). ``stop()`` ends the capture, then the server.
     """
 
     def __init__(
@@ -192,6 +207,8 @@ class Viewer:
         clip: Path | None = None,
         audio: Path | None = None,
         landmarks_out: Path | None = None,
+        capture: str | os.PathLike[str] | None = None,
+        capture_options: dict | None = None,
     ) -> None:
         self.server = server
         self.source = Path(source)
@@ -211,6 +228,10 @@ class Viewer:
         self.vertices: np.ndarray | None = None
         self.pose: np.ndarray | None = None
         self.audio: tuple[bytes, str] | None = None  # the timeline's sound and its MIME type
+        self.capture = None if capture is None else str(capture)
+        self.live = None  # the session.LivePlayback of ``capture``
+        self.live_text = None
+        self._live_posed = False  # a live frame has posed the face
         try:
             self._load()
         except MimeticError as error:
@@ -220,6 +241,14 @@ class Viewer:
         self._build()
         if clip is not None:
             self._load_clip(Path(clip).read_bytes(), audio)
+        if self.capture is not None:
+            self._start_live(capture_options or {})
+
+    def stop(self) -> None:
+        """End the live capture (its thread and ffmpeg), then the server."""
+        if self.live is not None:
+            self.live.stop()
+        self.server.stop()
 
     # ---- loading
 
@@ -260,6 +289,8 @@ class Viewer:
         self._add_meshes()
         self.server.on_client_connect(self._frame_camera)
         self.status = gui.add_markdown(self._status_text())
+        if self.capture is not None:
+            self.live_text = gui.add_markdown(self._live_line("starting"))
         if self.session is not None:
             self._view_controls()
         tabs = gui.add_tab_group()
@@ -603,6 +634,40 @@ class Viewer:
             self.muscle_lines.points = self._muscle_points()
         self.muscle_lines.visible = visible
 
+    # ---- live capture
+
+    def _live_line(self, text: str) -> str:
+        return f"**Live capture** of `{Path(self.capture).name}`: {_escape(text)}"
+
+    def _start_live(self, options: dict) -> None:
+        """Play ``self.capture`` on the rig as it arrives (``session.LivePlayback``)."""
+        from mimetic.view.session import LivePlayback
+
+        if self.session is None:
+            self.live_text.content = self._live_line(
+                f"error: {self.source.name} is a mesh; live capture plays on a .mrig rig"
+            )
+            return
+        self._playing.clear()  # the timeline stops: the capture drives the face
+        self.live = LivePlayback(
+            self.rig, self.capture, show=self._show_live, report=self._live_reported, **options
+        )
+        self.live.start()
+
+    def _show_live(self, time_s: float, values: np.ndarray) -> None:
+        """Pose the face with a live frame's values (c,) (sliders are synced when the capture ends)."""
+        with self._lock:
+            self._refresh(np.clip(values, self.session.lower, self.session.upper))
+            self._live_posed = True
+
+    def _live_reported(self, status) -> None:
+        """Show a ``session.LiveStatus``; at the end, the sliders take the last pose shown."""
+        self.live_text.content = self._live_line(status.text())
+        if status.state == "failed":
+            self._notify("Live capture failed", status.error, color="red")
+        if status.done and self._live_posed:
+            self._show_pose(self.pose)
+
     # ---- timeline
 
     def _set_key(self) -> None:
@@ -834,10 +899,12 @@ def start(
     clip: Path | None = None,
     audio: Path | None = None,
     landmarks_out: Path | None = None,
+    capture: str | os.PathLike[str] | None = None,
+    capture_options: dict | None = None,
 ) -> Viewer:
-    """Start the viewer's server (in background threads) and build the page; ``viewer.server.stop()``
-    ends it. ViewError when the port is taken; a rig that cannot be read shows its error in the page
-    (``viewer.error``)."""
+    """Start the viewer's server (in background threads) and build the page; ``viewer.stop()`` ends it
+    (and ``capture``'s thread). ViewError when the port is taken; a rig that cannot be read shows its
+    error in the page (``viewer.error``), and so does a capture that fails (``viewer.live.status``)."""
     viser = _viser()
     if port:
         check_port(host, port)
@@ -847,7 +914,16 @@ def start(
         server.stop()
         raise ViewError(f"port {port} on {host} was taken while the viewer started; pass --port {port + 1}")
     try:
-        return Viewer(server, source, engine=engine, clip=clip, audio=audio, landmarks_out=landmarks_out)
+        return Viewer(
+            server,
+            source,
+            engine=engine,
+            clip=clip,
+            audio=audio,
+            landmarks_out=landmarks_out,
+            capture=capture,
+            capture_options=capture_options,
+        )
     except BaseException:
         server.stop()
         raise
