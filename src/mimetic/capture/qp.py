@@ -217,5 +217,10 @@ def box_qp_frames(
     solved = np.empty(len(g), np.bool_)
     lower = np.ascontiguousarray(lower, dtype=np.float64)
     upper = np.ascontiguousarray(upper, dtype=np.float64)
-    _box_qp_frames(H3, g, lower, upper, start, out, solved)
+    if len(g) == 1:  # one frame (a live stream's): no parallel launch
+        x = start[0].copy()
+        solved[0] = _box_qp(H3[0], g[0], lower, upper, x)
+        out[0] = x if solved[0] else start[0]
+    else:
+        _box_qp_frames(H3, g, lower, upper, start, out, solved)
     return out, solved

@@ -160,15 +160,17 @@ class ImageModel:
         for lo in range(0, len(x), CHUNK):
             c = slice(lo, lo + CHUNK)
             Q = contour_projectors(camera, P[c], markers.tangents, R[c], markers.sliding)  # (b, m, 2, 2)
-            A = np.einsum("bmij,bjl,mlk->bmik", Q @ camera.jacobian(P[c]), R[c], self.flat)  # ∂(Q π)/∂a
-            e = np.einsum("bmij,bmj->bmi", Q, np.nan_to_num(u[c]) - camera.project(P[c]))
-            target = e + np.einsum("bmik,bk->bmi", A, x[c])  # (b, m, 2)
-            w = confidence[c]
-            H = np.einsum("bm,bmdi,bmdj->bij", w, A, A)
+            QJR = Q @ camera.jacobian(P[c]) @ R[c][:, None]  # (b, m, 2, 3)
+            A = QJR @ self.flat  # (b, m, 2, k): ∂(Q π)/∂a
+            e = (Q @ (np.nan_to_num(u[c]) - camera.project(P[c]))[..., None])[..., 0]  # (b, m, 2)
+            target = e + (A @ x[c][:, None, :, None])[..., 0]
+            root = np.sqrt(confidence[c])[..., None, None]  # (b, m, 1, 1)
+            rows = (root * A).reshape(len(A), -1, k)  # (b, 2m, k): the weighted rows
+            H = rows.transpose(0, 2, 1) @ rows
             ridge = np.maximum(np.einsum("bii->bi", H), 1e-12)
             H[:, np.arange(k), np.arange(k)] += max(self.regularization, 1e-12) * ridge
             H += nu * (scale[c] ** 2)[:, None, None] * self.shape
-            g = np.einsum("bm,bmdi,bmd->bi", w, A, target)
+            g = (rows.transpose(0, 2, 1) @ (root[..., 0] * target).reshape(len(A), -1, 1))[..., 0]
             solved, ok = box_qp_frames(H, g, self.lower, self.upper, np.clip(x[c], self.lower, self.upper))
             if not ok.all():
                 warnings.warn(
