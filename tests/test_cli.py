@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from mimetic.animate.clip import from_expressions, load_clip
+from mimetic.demo import ANIMATION
 from mimetic.engines import ENGINES
 from mimetic.head.model import make_head
 from mimetic.mesh.io import load_mesh, save_mesh
@@ -101,12 +103,20 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         "jaw_drop_tissue.mp4",
         "talk.mp4",
         "talk.clip.json",
-        "capture.trc",
+        "capture.mp4",
         "capture.clip.json",
+        "capture_compare.png",
         "capture_retargeted.mp4",
         "capture_retargeted.glb",
     ):
         assert (out / name).stat().st_size > 1000, name
+    # the capture reads the performance back from its video: joy's smile, surprise's jaw, the head's turn
+    performed = from_expressions(load_rig(out / "default.mrig"), list(ANIMATION)).sample(30.0)
+    captured = load_clip(out / "capture.clip.json").sample(30.0)
+    for channel, least in (("zygomatic_major_L", 0.8), ("jaw_open", 0.6)):
+        a, b = performed.select([channel]).values[:, 0], captured.select([channel]).values[:, 0]
+        assert np.corrcoef(a, b[: len(a)])[0, 1] > least, channel
+    assert np.degrees(np.ptp(captured.select(["head_yaw"]).values)) > 20
     assert len(list((out / "rigs").glob("seed_*.mrig"))) == 8
     assert len(list((out / "heads").glob("seed_*.glb"))) == 8
     assert (
