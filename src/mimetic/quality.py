@@ -27,18 +27,13 @@ Definitions (lengths in rig units, ``Rig.units``; the issue's targets are in cm)
   moves with the jaw. (ICT's own ``jawOpen`` scores 0.10: a real upper lip moves a little.)
 * **Lid margins** (``find_lid_margins``): per eye, an eye frame from the rest mesh: origin at the
   inner eye corner, ``u`` along the chord to the outer corner (``width`` = its length), ``w`` the
-  gaze (the eye bone's axis, made orthogonal to ``u``), ``v = w × u`` (up). Candidates: vertices
-  of either eyelid region that lie on the largest connected piece of mesh the regions reach (the
-  skin: lashes and other separate accessories are left out), in front of the eyeball centre, with
-  ``u`` between 15 % and 85 % of the chord, and on the *rim* seen along the gaze: on a boundary
-  edge (an eye hole) or shared by a face turned toward the viewer and one turned away (where the
-  lid folds into an eye socket, as on ICT). The corner chord splits them into upper (``v > 0``)
-  and lower candidates (the regions are not trusted for that: a transfer blurs them). Cut into
-  columns along ``u`` as wide as the typical rim edge runs along ``u`` (at most 16), the upper
-  margin is the lowest upper candidate of each column, the lower margin the highest lower one.
-  Without rim candidates, or when upper and lower margin vertices in the middle half share a
-  triangle, the opening is closed by faces (MediaPipe's mask): the mesh has no real lids
-  (``bridged``) and gaps are not measured.
+  gaze (the eye bone's axis, made orthogonal to ``u``), ``v = w × u`` (up). The opening between the
+  lids is found from the skin's own geometry near the corner landmarks (``mimetic.mesh.openings``:
+  seen from the front, the lids' silhouettes bound it), not from the rig's regions or weights; the
+  margins are the skin's rim vertices along its top and bottom edges (within two of its grid steps,
+  ``MARGIN_TOLERANCE``), with ``u`` between 15 % and 85 % of the chord, ordered by ``u``. Without an
+  opening (MediaPipe's mask, whose eyes are closed by faces) the mesh has no real lids (``bridged``)
+  and gaps are not measured.
 * **Lid gap** (``margin_gap``, ``lid_gap``): the posed margins projected on the eye frame's
   (u, v) plane, each sorted by ``u`` and interpolated linearly on 33 common ``u`` values over the
   range both cover; gap = ``v(upper) − v(lower)`` per column. Negative: the upper margin is below
@@ -66,9 +61,10 @@ import numpy as np
 
 from mimetic.engines.basis import Basis
 from mimetic.errors import MimeticWarning
-from mimetic.mesh.geometry import connected_components, edges_unique, face_normals
+from mimetic.mesh.geometry import edges_unique, face_normals
 from mimetic.mesh.model import SurfacePoint
-from mimetic.rig.anatomy.lids import eye_frame, gaze_rim
+from mimetic.mesh.openings import EYE_STEP_REL, eye_opening, eyeball, margin_seeds, skin_faces
+from mimetic.rig.anatomy.lids import eye_frame
 from mimetic.rig.model import Channel, Rig
 
 log = logging.getLogger(__name__)
@@ -110,12 +106,8 @@ CORNER_SHARE = 0.25
 """Lip vertices closer than this fraction of the mouth width to a mouth corner are not compared."""
 MARGIN_SPAN = (0.15, 0.85)
 """The part of the eye-corner chord (fractions from the inner corner) where margins are compared."""
-BRIDGE_SPAN = (0.25, 0.75)
-"""Margin vertices here (fractions of the u range both margins cover) that share a triangle mean the
-opening is closed by faces."""
-MAX_COLUMNS = 16
-COLUMN_EDGES = 1.0
-"""A margin column is at least this many typical edge lengths wide."""
+MARGIN_TOLERANCE = 2.0
+"""A margin vertex lies within this many grid steps of the opening's edge (``mimetic.mesh.openings``)."""
 GAP_SAMPLES = 33
 ROUGHNESS_DEGREE = 4
 MIN_ROUGHNESS_POINTS = 7
@@ -432,77 +424,36 @@ def find_lid_margins(rig: Rig, side: str) -> LidMargins:
     Returns
     -------
     LidMargins
-        ``reason`` says why the margins are not usable: a lid region missing or empty, too few
-        columns, or an opening closed by faces (``bridged``).
+        ``reason`` says why the margins are not usable: no opening between the lids (``bridged``: a
+        face mask whose eyes are closed by faces), or too few margin vertices.
     """
     if side not in ("L", "R"):
         raise ValueError(f"side must be 'L' or 'R'; got {side!r}")
-    V, F = rig.mesh.vertices, rig.mesh.faces
-    origin, axes, width, centre = _eye_frame(rig, side)
+    V = rig.mesh.vertices
+    origin, axes, width, _ = _eye_frame(rig, side)
     empty = np.zeros(0, dtype=np.int64)
-    regions = (f"eyelid_upper_{side}", f"eyelid_lower_{side}")
-    missing = [r for r in regions if r not in rig.regions or len(rig.regions[r]) == 0]
-    if missing:
-        return LidMargins(side, empty, empty, origin, axes, width, False, f"no {' or '.join(missing)} region")
-    # the largest connected piece of mesh the lid regions reach: the skin (lashes and other
-    # accessories are separate pieces, and a transferred region or landmark may lie on them)
-    _, labels = connected_components(F, len(V))
-    sizes = np.bincount(labels)
-    reached = np.unique(labels[np.concatenate([rig.regions[r] for r in regions])])
-    on_piece = labels == reached[np.argmax(sizes[reached])]
-    uvw = (V - origin) @ axes.T  # (n, 3)
-    in_front = (V - centre) @ axes[2] > 0
+    skin = skin_faces(V, rig.mesh.faces)
+    corners = rig.landmark_positions([f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"])
+    opening = eye_opening(V, skin, corners, eyeball(V, rig.mesh.faces, corners))
+    if opening is None:
+        reason = "no real lids: no opening between the lids seen from the front"
+        return LidMargins(side, empty, empty, origin, axes, width, True, reason)
+    tolerance = MARGIN_TOLERANCE * EYE_STEP_REL * width
     lo, hi = MARGIN_SPAN[0] * width, MARGIN_SPAN[1] * width
-    inside = (uvw[:, 0] > lo) & (uvw[:, 0] < hi)
-    eyelids = np.concatenate([rig.regions[r] for r in regions])
-    eyelids = np.unique(eyelids[on_piece[eyelids] & in_front[eyelids] & inside[eyelids]])
-    if len(eyelids) == 0:
-        return LidMargins(
-            side, empty, empty, origin, axes, width, False, "no lid vertices in front of the eye"
-        )
-    rim = gaze_rim(V, F, axes[2])
-    edged = eyelids[rim[eyelids]]
-    above = uvw[edged, 1] > 0  # split by the corner chord, not by region: transfers blur the regions
-    candidates = [edged[above], edged[~above]]
-    if min(len(c) for c in candidates) == 0:
-        return LidMargins(
-            side, empty, empty, origin, axes, width, True, "no real lids: no opening between the lids"
-        )
-    # column width: the typical spacing along u of the rim edges that run along the lids
-    near = np.isin(F, edged).sum(axis=1) >= 2
-    edges = edges_unique(F[near])
-    edges = edges[rim[edges].all(axis=1) & np.isin(edges, edged).all(axis=1)]
-    step = np.abs(uvw[edges[:, 0]] - uvw[edges[:, 1]])  # (e, 3)
-    along = step[:, 0] > 2 * step[:, 1]
-    if along.any():
-        edge = float(np.median(step[along, 0]))
-    else:
-        edge = (hi - lo) / MAX_COLUMNS
-    columns = int(np.clip(np.floor((hi - lo) / (COLUMN_EDGES * edge)), 1, MAX_COLUMNS))
-    bounds = np.linspace(lo, hi, columns + 1)
     margins = []
-    for ids, pick in zip(candidates, (np.argmin, np.argmax), strict=True):
-        column = np.clip(np.searchsorted(bounds, uvw[ids, 0]) - 1, 0, columns - 1)
-        chosen = []
-        for k in range(columns):
-            members = ids[column == k]
-            if len(members):
-                chosen.append(members[pick(uvw[members, 1])])
-        chosen = np.unique(np.asarray(chosen, dtype=np.int64))
-        margins.append(chosen[np.argsort(uvw[chosen, 0])])
+    for ids, pick in zip(margin_seeds(V, skin, opening, tolerance), (np.argmin, np.argmax), strict=True):
+        u = (V[ids] - origin) @ axes[0]
+        v = (V[ids] - origin) @ axes[1]
+        ids, u, v = ids[(u > lo) & (u < hi)], u[(u > lo) & (u < hi)], v[(u > lo) & (u < hi)]
+        # one vertex per column a grid step wide: the one nearest the opening
+        column = np.floor(u / (EYE_STEP_REL * width)).astype(np.int64)
+        chosen = [ids[column == k][pick(v[column == k])] for k in np.unique(column)]
+        chosen = np.asarray(chosen, dtype=np.int64)
+        margins.append(chosen[np.argsort((V[chosen] - origin) @ axes[0])])
     upper, lower = margins
     if min(len(upper), len(lower)) < 3:
-        return LidMargins(side, upper, lower, origin, axes, width, False, "fewer than 3 margin columns")
-    first = max(uvw[upper[0], 0], uvw[lower[0], 0])  # the u range both margins cover
-    last = min(uvw[upper[-1], 0], uvw[lower[-1], 0])
-    span = last - first
-    middle = (uvw[:, 0] > first + BRIDGE_SPAN[0] * span) & (uvw[:, 0] < first + BRIDGE_SPAN[1] * span)
-    is_upper = np.zeros(len(V), dtype=bool)
-    is_lower = np.zeros(len(V), dtype=bool)
-    is_upper[upper[middle[upper]]], is_lower[lower[middle[lower]]] = True, True
-    bridged = bool(np.any(is_upper[F].any(axis=1) & is_lower[F].any(axis=1)))
-    reason = "no real lids: faces close the eye opening between the margins" if bridged else ""
-    return LidMargins(side, upper, lower, origin, axes, width, bridged, reason, uvw[upper, 0])
+        return LidMargins(side, upper, lower, origin, axes, width, False, "fewer than 3 margin vertices")
+    return LidMargins(side, upper, lower, origin, axes, width, False, "", (V[upper] - origin) @ axes[0])
 
 
 def margin_gap(

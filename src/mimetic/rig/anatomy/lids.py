@@ -44,7 +44,17 @@ from scipy.interpolate import make_smoothing_spline
 from scipy.sparse.csgraph import connected_components as graph_components
 
 from mimetic.head.parts import eyeball_profile
-from mimetic.mesh.geometry import boundary_edges, connected_components, edges_unique, face_normals
+from mimetic.head.shape import smoothstep
+from mimetic.mesh.geometry import connected_components, edges_unique
+from mimetic.mesh.openings import (
+    SEED_TOLERANCE_REL,
+    eye_opening,
+    gaze_rim,
+    margin_distance,
+    margin_seeds,
+    opening_sides,
+    skin_faces,
+)
 
 __all__ = [
     "LID_CLEARANCE_REL",
@@ -83,6 +93,10 @@ MIN_MARGIN = 3
 SMOOTHING = 1e-5
 """Penalty of the smoothing spline of the closing weights along the margin (``u`` in lid widths)."""
 BISECTIONS = 40
+LID_BAND_REL = 0.3
+"""The upper lid's skin follows its margin to this distance from it along the skin, × the eye's width
+(the corners' distance; 0.9 cm on ICT's 3 cm eyes), fading from 1 at the margin (``lid_profile``).
+Calibrated on ICT's neutral (its eyeBlink shapes' implied weights)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,23 +186,6 @@ def eye_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
     return x[:3], float(np.sqrt(max(x[3] + x[:3] @ x[:3], 0.0)))
 
 
-def gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.ndarray:
-    """Vertices (n,) bool where the surface, seen along ``gaze`` (3,), ends or turns away: on a boundary
-    edge, or shared by a face facing the viewer (n · gaze > 0) and one facing away. A lid margin is
-    such a rim: the skin ends at an eye hole or folds back into the eye socket there."""
-    n = len(vertices)
-    normals = face_normals(vertices, faces, unit=False)
-    facing = normals @ gaze
-    has_area = np.linalg.norm(normals, axis=1) > 0
-    front = np.zeros(n, dtype=bool)
-    back = np.zeros(n, dtype=bool)
-    front[faces[has_area & (facing > 0)].ravel()] = True
-    back[faces[has_area & (facing <= 0)].ravel()] = True
-    rim = front & back
-    rim[boundary_edges(faces).ravel()] = True
-    return rim
-
-
 def _envelope(ids: np.ndarray, edges: np.ndarray, uvw: np.ndarray, *, lowest: bool) -> np.ndarray:
     """The vertices of ``ids`` on the lower (``lowest``) or upper envelope, seen along the gaze, of the
     polylines their mesh edges draw in the eye's (u, v) plane, ordered by ``u``.
@@ -264,6 +261,19 @@ def _overlap(margin: np.ndarray, other: np.ndarray, uvw: np.ndarray) -> np.ndarr
     return margin[first:last]
 
 
+def _seen_margins(
+    vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray, centre: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The rim vertices along the upper and lower edges of the eye's opening seen from the front
+    (``mimetic.mesh.openings``: the lids' silhouettes, whatever the regions say), or None when no
+    opening is found (eyes closed by faces)."""
+    skin = skin_faces(vertices, faces)
+    opening = eye_opening(vertices, skin, corners, (centre, radius))
+    if opening is None:
+        return None
+    return margin_seeds(vertices, skin, opening, SEED_TOLERANCE_REL * opening.width)
+
+
 def lid_rims(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -317,14 +327,19 @@ def lid_rims(
     mixed = is_tucked[edges[:, 0]] != is_tucked[edges[:, 1]]
     next_to_tucked[edges[mixed].ravel()] = True
     rim = gaze_rim(vertices, faces, axes[2])
+    seen = _seen_margins(vertices, faces, corners, centre, radius)
     upper, lower, margin = [], [], []
     for tucked in (False, True):
         layer = lids[is_tucked[lids] == tucked]
         ids = layer[rim[layer] | (next_to_tucked[layer] & (not tucked))]
         up, low = ids[uvw[ids, 1] > 0], ids[uvw[ids, 1] <= 0]
-        upper.append(up[np.argsort(uvw[up, 0], kind="stable")])
         top = _chain(_envelope(up, edges, uvw, lowest=True), up, edges, uvw, width)
         bottom = _chain(_envelope(low, edges, uvw, lowest=False), low, edges, uvw, width)
+        if not tucked and seen is not None:  # the head's own opening, not the regions' guess
+            on_span = [(uvw[m, 0] > lo) & (uvw[m, 0] < hi) & ~is_tucked[m] for m in seen]
+            up, low = (m[keep] for m, keep in zip(seen, on_span, strict=True))
+            top, bottom = _envelope(up, edges, uvw, lowest=True), _envelope(low, edges, uvw, lowest=False)
+        upper.append(up[np.argsort(uvw[up, 0], kind="stable")])
         top, bottom = _smooth_run(top, uvw, width, lowest=True), _smooth_run(bottom, uvw, width, lowest=False)
         margin.append(_overlap(top, bottom, uvw))
         lower.append(_overlap(bottom, top, uvw))
@@ -508,17 +523,19 @@ def closing_weights(
         above = shortfall(mid) > 0
         lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
     needed = 0.5 * (lo + hi)  # (k,)
-    # every upper-lid vertex keeps its share of its column's margin weight (1 on the tarsal plate,
-    # fading toward the brow); the margin's weight becomes the smoothed closing weight
+    # the lid moves as its edge does: each vertex on the upper lid's side of the opening takes its
+    # column's closing weight times its share of the margin's motion, which falls with its distance
+    # from the margin along the skin (``lid_profile``: the skin of the lid, and the lid's inner
+    # surface behind its edge, but not the brow nor the socket behind the eyeball)
     u = rims.uvw(p)[:, 0] / rims.width
     closing = _smooth(u, needed)
-    ids = np.flatnonzero(out[:, lid] > 0)
+    skin = skin_faces(vertices, faces)
+    share = lid_profile(vertices, skin, rims.upper[0], lower, LID_BAND_REL * rims.width)
+    ids = np.flatnonzero((share > 0) | (out[:, lid] > 0))
     at = rims.uvw(vertices[ids])[:, 0] / rims.width
-    column = np.interp(at, u, out[margin, lid])
-    share = np.clip(out[ids, lid] / np.maximum(column, 1e-9), 0.0, 1.0)
     want = np.clip(closing(np.clip(at, u[0], u[-1])), 0.0, None)  # past the ends: the end's
     total = out[ids, lid] + out[ids, head]  # a vertex the head bone does not weight only gives
-    new = np.minimum(share * want, total)
+    new = np.minimum(share[ids] * want, total)
     given = out[ids, lid] - new
     out[ids, lid], out[ids, head] = new, total - new
     # where the head bone did not weight a vertex its other bones share what the lid gives, so no
@@ -526,11 +543,27 @@ def closing_weights(
     others = out[ids].copy()
     others[:, [lid, head]] = 0.0
     room = others.sum(axis=1)
-    spread = (weights[ids, head] == 0) & (room > 0)
+    spread = (weights[ids, head] == 0) & (room > 0) & (given > 0)
     rows = ids[spread]
     out[rows, head] = 0.0
     out[rows] += others[spread] * (given[spread] / room[spread])[:, None]
     return out
+
+
+def lid_profile(
+    vertices: np.ndarray, faces: np.ndarray, upper: np.ndarray, lower: np.ndarray, band: float
+) -> np.ndarray:
+    """The share (n,) of the upper lid margin's motion each vertex takes: 1 on the margin ``upper``,
+    falling smoothly to 0 at ``band`` from it along the skin ``faces`` (a smoothstep), and 0 off the
+    upper lid's side of the opening (nearer the lower margin ``lower``: ``opening_sides``).
+
+    ICT's captured blinks move the skin this way: the implied lid weight is about 1 at the margin,
+    0.5 at 0.12 eye widths from it and under 0.1 beyond 0.3 (``LID_BAND_REL``).
+    """
+    distance = margin_distance(vertices, faces, upper, band)
+    share = np.where(np.isfinite(distance), 1.0 - smoothstep(0.0, band, np.minimum(distance, band)), 0.0)
+    share[opening_sides(vertices, faces, upper, lower, band) != 1] = 0.0
+    return share
 
 
 def _smooth(u: np.ndarray, values: np.ndarray):
