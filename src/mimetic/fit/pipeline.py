@@ -182,6 +182,8 @@ def rig_head(
         reference_rig,
         weld.mesh,
         fit.conformation.to_model,
+        openings=fit.openings,
+        margins=fit.margins,
         metadata={
             "landmarks": landmarks.source,
             "fit": {

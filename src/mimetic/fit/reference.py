@@ -10,19 +10,27 @@ nearest to it, so eyeballs stay spheres and the teeth stay rigid.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from mimetic.errors import LandmarkError
 from mimetic.fit.conform import Conformation, fit_conformation, landmark_model
-from mimetic.fit.register import Registration, TargetSurface, register, sample_surface
+from mimetic.fit.register import Curve, Registration, TargetSurface, register, sample_surface
 from mimetic.head.model import DEFAULT_RESOLUTION, Head, make_head
 from mimetic.head.topology import build_topology
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
+from mimetic.mesh.openings import (
+    Opening,
+    eye_opening,
+    eyeball,
+    mouth_opening,
+    opening_margins,
+    skin_faces,
+)
 
 MIN_LANDMARKS = 8
 FOLLOW_NEIGHBOURS = 24  # skin vertices whose displacement a separate part follows
@@ -52,6 +60,11 @@ class ReferenceFit:
     flipped : bool
         True when the target's faces wound inward (normals into the head, as after a mirroring
         export): ``target`` has them turned the right way round.
+    openings : Mapping[str, Opening]
+        The target's openings ("eye_L", "eye_R", "mouth") found from its geometry, reference frame;
+        the registration bound the reference's margins to them.
+    margins : Mapping[str, ((a,), (b,) int64)]
+        The reference's upper and lower margin vertices of each opening (``opening_margins``).
     """
 
     head: Head
@@ -63,6 +76,8 @@ class ReferenceFit:
     landmark_names: tuple[str, ...]
     landmark_targets: np.ndarray
     flipped: bool = False
+    openings: Mapping[str, Opening] = field(default_factory=dict)
+    margins: Mapping[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
 
 def projectable_vertices(head: Head) -> np.ndarray:
@@ -113,6 +128,35 @@ def follow_skin(head: Head, skin: np.ndarray) -> np.ndarray:
             continue
         _, near = tree.query(rest[ids].mean(axis=0), k=FOLLOW_NEIGHBOURS)
         out[ids] = rest[ids] + moved[near].mean(axis=0)
+    return out
+
+
+FEATURES = {
+    "eye_L": ("eye_inner_corner_L", "eye_outer_corner_L"),
+    "eye_R": ("eye_inner_corner_R", "eye_outer_corner_R"),
+    "mouth": ("mouth_corner_R", "mouth_corner_L"),
+}
+"""The openings whose margins the registration follows, and the landmarks that say where they are."""
+
+
+def feature_openings(head: Head, target: Mesh, names: list[str], points: np.ndarray) -> dict[str, Opening]:
+    """The target's eye and mouth openings (``mimetic.mesh.openings``), found near the corners the
+    landmarks ``names`` at ``points`` (k, 3) give (both in the reference frame), or the conformed
+    reference's corners where a landmark is missing. Openings that are not found are left out."""
+    where = dict(zip(names, points, strict=True))
+    faces = skin_faces(target.vertices, target.faces)
+    out = {}
+    for feature, corner_names in FEATURES.items():
+        corners = np.array(
+            [where[n] if n in where else head.mesh.vertices[head.landmarks[n]] for n in corner_names]
+        )
+        if feature == "mouth":
+            opening = mouth_opening(target.vertices, faces, corners)
+        else:
+            ball = eyeball(target.vertices, target.faces, corners)
+            opening = eye_opening(target.vertices, faces, corners, ball)
+        if opening is not None:
+            out[feature] = opening
     return out
 
 
@@ -178,6 +222,17 @@ def fit_reference(
     # convention (ICT's and OpenFace's lie 1-2.5 cm in front of the silhouette)
     on_skin = (lm_vertices < start.n_skin) & ~conformation.sliding
     mapped = to_model.apply(points)
+    openings = feature_openings(start, target, names, mapped)
+    # the reference's own margins, found as the target's are (its rings run past what is seen)
+    margins = opening_margins(
+        start.mesh.vertices, start.mesh.faces, feature_openings(start, start.mesh, [], np.zeros((0, 3)))
+    )
+    margins = {f: m for f, m in margins.items() if f in openings and min(map(len, m)) > 0}
+    curves = [
+        Curve(ids, line)
+        for f, m in margins.items()
+        for ids, line in zip(m, (openings[f].upper, openings[f].lower), strict=True)
+    ]
     registration = register(
         start.mesh.vertices[: start.n_skin],
         skin_faces,
@@ -187,6 +242,7 @@ def fit_reference(
         landmarks=lm_vertices[on_skin],
         landmark_targets=mapped[on_skin],
         landmark_weights=weights[on_skin],
+        curves=curves,
         progress=lambda done, total: step("registration", done, total),
     )
     vertices = follow_skin(start, registration.vertices)
@@ -197,5 +253,15 @@ def fit_reference(
     eye_centres.setflags(write=False)
     head = replace(start, mesh=start.mesh.with_vertices(vertices), eye_centres=eye_centres)
     return ReferenceFit(
-        head, start, conformation, target, surface, registration, tuple(names), mapped, flipped
+        head,
+        start,
+        conformation,
+        target,
+        surface,
+        registration,
+        tuple(names),
+        mapped,
+        flipped,
+        {f: openings[f] for f in margins},
+        margins,
     )

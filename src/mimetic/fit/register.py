@@ -35,6 +35,7 @@ from mimetic.errors import MeshError
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.geometry import (
     boundary_edges,
+    closest_on_polyline,
     connected_components,
     face_normals,
     vertex_adjacency,
@@ -72,6 +73,20 @@ SCHEDULE: tuple[Stage, ...] = (
     Stage(1.0, 0.04, 0.5),
     Stage(0.4, 0.03, 0.3, iterations=3),
 )
+
+
+CURVE_WEIGHT = 2.0
+"""A curve's vertices are bound to it at least this strongly (the landmark weight when larger): a lid
+margin or the lips' line stays on the target's to the end, where the landmarks let go."""
+
+
+@dataclass(frozen=True)
+class Curve:
+    """Reference vertices (k,) int64 that slide along a target ``polyline`` (p, 3), p ≥ 2: each is
+    bound to its closest point on it, found again before every solve."""
+
+    vertices: np.ndarray
+    polyline: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -235,6 +250,7 @@ def register(
     landmarks: np.ndarray | None = None,
     landmark_targets: np.ndarray | None = None,
     landmark_weights: np.ndarray | None = None,
+    curves: Sequence[Curve] = (),
     schedule: Sequence[Stage] | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> Registration:
@@ -253,6 +269,8 @@ def register(
         Head size (height) in target units; distance cut-offs are fractions of it.
     landmarks : (k,) int64, optional
         Reference vertices bound to ``landmark_targets`` (k, 3) with ``landmark_weights`` (k,).
+    curves : sequence of Curve
+        Reference vertices that slide along target polylines (lid margins, the lips' line).
     progress : callable(done, total), optional
     """
     schedule = SCHEDULE if schedule is None else schedule
@@ -290,6 +308,12 @@ def register(
             if len(lm):
                 np.add.at(diag, lm, stage.landmark_weight * lm_w)
                 np.add.at(rhs, lm, (stage.landmark_weight * lm_w)[:, None] * landmark_targets)
+            pull = max(stage.landmark_weight, CURVE_WEIGHT)
+            for curve in curves:
+                seg, t, _ = closest_on_polyline(x[curve.vertices], curve.polyline)
+                on = curve.polyline[seg] + t[:, None] * (curve.polyline[seg + 1] - curve.polyline[seg])
+                np.add.at(diag, curve.vertices, pull)
+                np.add.at(rhs, curve.vertices, pull * on)
             system = (sp.diags(diag) + stage.stiffness * ltl).tocsr()
             x = _solve_spd(system, rhs + stage.stiffness * ltl_x0, x)
             done += 1

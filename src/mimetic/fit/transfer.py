@@ -18,6 +18,7 @@ convention), which ``metadata["source_rotation"]`` undoes.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -29,6 +30,7 @@ from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
 from mimetic.mesh.geometry import connected_components, smooth_field, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
+from mimetic.mesh.openings import Opening, opening_margins, opening_sides
 from mimetic.rig.anatomy import closing_weights, find_accessories
 from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL
 from mimetic.rig.model import Bone, Rig, Wire
@@ -50,6 +52,12 @@ MOUTH_PARTS = ("teeth_upper", "teeth_lower", "tongue", "mouth")
 CORNER_REACH = (
     0.5  # the mouth cavity within this × half the mouth width of a corner is smoothed with the lips
 )
+SIDE_REACH = {"eye": 0.4, "mouth": 0.6}
+"""Data keeps to its side of an opening within this × the opening's width of its margins, along the
+surface (1.2 cm around an eye, 3 cm around the mouth: the lips' inner surfaces and the cavity's front)."""
+CORNER_FREE_REL = 0.1
+"""... except within this × the width of either corner (along the line through them), where the
+margins meet and which side a vertex is on is a matter of millimetres (the corners blend both)."""
 JAW_SMOOTH_REL = 0.022  # diffusion length of the jaw weight over the user's skin, × the head height (3 mm)
 
 
@@ -250,7 +258,55 @@ def _close_lids(
     return out
 
 
-def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: dict | None = None) -> Rig:
+def _sided(
+    mesh_ref: Mesh,
+    in_model: np.ndarray,
+    faces: np.ndarray,
+    normals: np.ndarray,
+    hit: ClosestPoints,
+    movable: np.ndarray,
+    openings: Mapping[str, Opening],
+    margins: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    candidates: np.ndarray,
+) -> None:
+    """Correspondences ``hit`` (changed in place) kept on the same side of each opening.
+
+    A user vertex nearer the upper margin of an opening than the lower along its surface
+    (``opening_sides``) takes its data from the reference's side of that opening's upper margin, and
+    likewise below: overlapping lips, or a fitted lip line a few millimetres off, would otherwise
+    hand the upper lip's inner surface the lower lip's weights and wires, and its triangles fold as
+    the lips part. Only ``movable`` (n,) user vertices are moved, onto the reference faces
+    ``candidates`` (f,).
+    """
+    ref_faces = mesh_ref.faces[candidates]
+    for feature, opening in openings.items():
+        if feature not in margins:
+            continue
+        reach = SIDE_REACH[feature.split("_")[0]] * opening.width
+        seeds = opening_margins(in_model, faces, {feature: opening})[feature]
+        user_side = opening_sides(in_model, faces, *seeds, reach)
+        axis = opening.corners[1] - opening.corners[0]
+        along = (in_model - opening.corners[0]) @ axis / (axis @ axis)
+        user_side[(along < CORNER_FREE_REL) | (along > 1 - CORNER_FREE_REL)] = 0
+        ref_side = opening_sides(mesh_ref.vertices, ref_faces, *margins[feature], reach)
+        face_side = np.sign(ref_side[ref_faces].astype(np.int64).sum(axis=1))
+        for side in (1, -1):
+            mine = candidates[face_side == side]
+            wrong = np.flatnonzero(movable & (user_side == side) & ~np.isin(hit.faces, mine))
+            if len(wrong) and len(mine):
+                redo = _correspond(mesh_ref, mine, in_model[wrong], normals[wrong])
+                hit.faces[wrong], hit.bary[wrong] = redo.faces, redo.bary
+
+
+def transfer_rig(
+    reference: Rig,
+    user: Mesh,
+    to_model: Similarity,
+    *,
+    openings: Mapping[str, Opening] | None = None,
+    margins: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    metadata: dict | None = None,
+) -> Rig:
     """The rig of ``reference`` (built on the fitted reference, reference frame) on ``user``'s vertices.
 
     Parameters
@@ -261,6 +317,11 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
         The user's mesh in its own frame and units (``user.units`` must be known).
     to_model : Similarity
         The user frame → reference frame map the fit used.
+    openings : Mapping[str, Opening], optional
+        The user's openings (eyes, mouth) in the reference frame (``ReferenceFit.openings``), and
+    margins : Mapping[str, ((a,), (b,) int64)], optional
+        the reference's upper and lower margin vertices of each (``fit.reference.margin_rings``):
+        with both, data never crosses an opening (``_sided``).
     metadata : dict, optional
         Extra provenance for ``Rig.metadata``.
     """
@@ -282,6 +343,9 @@ def transfer_rig(reference: Rig, user: Mesh, to_model: Similarity, *, metadata: 
     if again.any():
         redo = _correspond(mesh_ref, deformable, in_model[again], normals[again])
         hit.faces[again], hit.bary[again] = redo.faces, redo.bary
+    if openings and margins:
+        movable = ~in_rigid & ~soft_mouth
+        _sided(mesh_ref, in_model, user.faces, normals, hit, movable, openings, margins, deformable)
     corners = mesh_ref.faces[hit.faces]  # (n_user, 3)
 
     # skin weights
