@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mimetic.mesh.model import Mesh
-from mimetic.mesh.weld import find_weld
+from mimetic.mesh.weld import coincident_groups, find_weld
 from mimetic.testing import cheek_centre, small_head, triangle_soup, unwelded_patch
 
 
@@ -73,3 +73,17 @@ def test_find_weld_drops_collapsed_faces_and_maps_faces_both_ways():
     np.testing.assert_array_equal(weld.faces, [0, 1])
     np.testing.assert_array_equal(weld.face_of([0, 1, 2]), [0, 1, -1])
     assert {k: v.tolist() for k, v in weld.mesh.parts.items()} == {"a": [0], "b": [1]}
+
+
+def test_coincident_groups_of_many_copies_of_one_point_stay_linear():
+    """A soup of a scan repeats a collapsed corner (a fan of degenerate faces, a film's pole) many
+    times over: 20,000 copies of one point would be 2·10⁸ pairs; grouped exactly first they are one."""
+    rng = np.random.default_rng(0)
+    pole = np.zeros((20_000, 3))
+    others = rng.uniform(1.0, 2.0, (100, 3))
+    near = others[:10] + 1e-7  # within tol of the first ten: merged with them
+    vertices = np.concatenate([others, pole, near])
+    label = coincident_groups(vertices, np.arange(len(vertices)), 1e-6)
+    assert (label[100:20_100] == 100).all()  # the pole's copies: the lowest index among them
+    np.testing.assert_array_equal(label[20_100:], np.arange(10))
+    np.testing.assert_array_equal(label[:100], np.arange(100))

@@ -98,12 +98,15 @@ def coincident_groups(vertices: np.ndarray, candidates: np.ndarray, tol: float) 
     label = np.arange(n, dtype=np.int64)
     if len(candidates) < 2:
         return label
-    pairs = cKDTree(vertices[candidates]).query_pairs(tol, output_type="ndarray")  # (p, 2) into candidates
-    if len(pairs) == 0:
-        return label
-    k = len(candidates)
+    # exactly coincident points first (a soup repeats each corner ~6 times; k copies of one point
+    # would make k² pairs), then pairs of the distinct points within tol
+    points, which = np.unique(vertices[candidates], axis=0, return_inverse=True)
+    which = which.ravel()
+    pairs = cKDTree(points).query_pairs(tol, output_type="ndarray")  # (p, 2) into points
+    k = len(points)
     graph = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
     _, component = connected_components(graph, directed=False)
+    component = component[which]
     lowest = np.full(component.max() + 1, n, dtype=np.int64)
     np.minimum.at(lowest, component, candidates)
     label[candidates] = lowest[component]
