@@ -71,12 +71,19 @@ MOUTH_STEP_REL = 1 / 100
 """Grid spacing around the mouth, × the mouth width (0.5 mm on a 5 cm mouth)."""
 MOUTH_MARGIN_REL = (0.15, 0.3)
 """The mouth's window reaches this far beyond the corners, and above and below them, × its width."""
-MOUTH_BAND_REL = 0.12
+MOUTH_BAND_REL = 0.2
 """The lips' seam stays within this × the mouth width of the line through the corners."""
 VALLEY_REL = 0.02
 """The seam is between the lips while the depth rises by this × the mouth width on both sides within
 ``VALLEY_REACH_REL``; past the commissures it does not."""
 VALLEY_REACH_REL = 0.12
+CORNER_SLACK_REL = 0.05
+"""The seam ends at most this × the mouth width beyond either corner."""
+VALLEY_GAP_REL = 0.15
+"""Breaks in the valley up to this × the mouth width long are bridged."""
+RIM_GAIN = 0.05
+"""A grid point next to the skin's rim counts as a valley this × the mouth width deep (the seam's
+cost; a clear valley between parted lips is deeper)."""
 MIN_SPAN_REL = 0.5
 """An opening spanning less than this × the corners' distance, or centred further than ``OFF_REL``
 of it from their middle, is not the one the corners mean."""
@@ -365,13 +372,27 @@ def mouth_opening(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) 
     line = np.interp(depth.x, corners[:, 0], corners[:, 1])
     band = np.abs(depth.y[:, None] - line[None]) < MOUTH_BAND_REL * width
     finite = np.where(np.isinf(z), np.nanmin(depth.z) - width if np.isfinite(depth.z).any() else 0.0, z)
-    path = _seam(np.where(band, finite, np.inf))
-    columns = np.arange(len(depth.x))
     reach = max(int(VALLEY_REACH_REL * width / step), 1)
+    # how far each point lies below the surface closed over it up and down (a black top-hat): the
+    # lips' seam is a narrow valley, a slope (the fold under a full lower lip) is none
+    valley_depth = ndimage.grey_closing(finite, size=(2 * reach + 1, 1)) - finite
+    # pressed lips leave almost no valley, but the skin still folds in between them: the seam
+    # follows the skin's rim seen from the front (``gaze_rim``) where there is one
+    rim = vertices[gaze_rim(vertices, faces, np.array([0.0, 0.0, 1.0]))]
+    col = np.round((rim[:, 0] - depth.x[0]) / step).astype(np.int64)
+    row = np.round((rim[:, 1] - depth.y[0]) / step).astype(np.int64)
+    inside = (col >= 0) & (col < len(depth.x)) & (row >= 0) & (row < len(depth.y))
+    folds = np.zeros(z.shape)
+    folds[row[inside], col[inside]] = 1.0
+    folds = ndimage.maximum_filter(folds, size=3)
+    path = _seam(np.where(band, -(valley_depth / width + RIM_GAIN * folds), np.inf))
+    columns = np.arange(len(depth.x))
     above = np.array([z[r : r + reach, c].max() for c, r in zip(columns, path, strict=True)])
     below = np.array([z[max(r - reach, 0) : r + 1, c].max() for c, r in zip(columns, path, strict=True)])
     floor = z[path, columns]
-    valley = np.minimum(above, below) - floor > VALLEY_REL * width
+    valley = (np.minimum(above, below) - floor > VALLEY_REL * width) | (folds[path, columns] > 0)
+    gap = max(int(VALLEY_GAP_REL * width / step), 1)  # short breaks (lips pressed flat) are bridged
+    valley = ndimage.binary_closing(valley, np.ones(gap)) | valley
     offset = np.abs(depth.x - corners[:, 0].mean())
     near = valley & (offset <= OFF_REL * width)
     if not near.any():
@@ -383,6 +404,8 @@ def mouth_opening(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) 
     while last < len(columns) - 1 and valley[last + 1]:
         last += 1
     keep = columns[first : last + 1]
+    # not past the corners the landmarks give: a crease running on from a commissure is no lip
+    keep = keep[np.abs(depth.x[keep] - corners[:, 0].mean()) <= (0.5 + CORNER_SLACK_REL) * width]
     # through a gap the margins are its top and bottom; where the lips touch, the valley's floor
     gap = np.isinf(z) | (z < floor[None] + 0.5 * (np.minimum(above, below) - floor)[None])
     top, bottom = path.copy(), path.copy()
