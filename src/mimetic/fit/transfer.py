@@ -55,6 +55,11 @@ CORNER_REACH = (
 SIDE_REACH = {"eye": 0.4, "mouth": 0.6}
 """Data keeps to its side of an opening within this × the opening's width of its margins, along the
 surface (1.2 cm around an eye, 3 cm around the mouth: the lips' inner surfaces and the cavity's front)."""
+CAVITY_RAMP_REL = (0.25, -0.5)
+"""The mouth cavity's jaw weight rises from 0 at this far above the lips' line to 1 this far below
+it, × the mouth width (``_cavity_jaw``). Fitted on ICT's neutral (its jawOpen's implied weights in the
+mouth socket: 0.06 at 1.5 cm above the line, 0.15 at 0.5 cm, 0.4 at 0.5 cm below, 0.7 below 1 cm);
+checked on ICT identities (benchmarks/bench_weights.py)."""
 CORNER_FREE_REL = 0.1
 """... except within this × the width of either corner (along the line through them), where the
 margins meet and which side a vertex is on is a matter of millimetres (the corners blend both)."""
@@ -194,6 +199,20 @@ def _soft_mouth_jaw(points: np.ndarray, upper_teeth: np.ndarray, lower_teeth: np
     d_upper, _ = cKDTree(upper_teeth).query(points)
     d_lower, _ = cKDTree(lower_teeth).query(points)
     return smoothstep(0.3, 0.7, d_upper / np.maximum(d_upper + d_lower, 1e-12))
+
+
+def _cavity_jaw(points: np.ndarray, mouth: Opening) -> np.ndarray:
+    """Jaw weight (k,) of mouth-cavity points (k, 3) (reference frame) from their height over the
+    line where the lips meet (``mouth``, its lower margin): 0 from ``CAVITY_RAMP_REL[0]`` × the mouth
+    width above it, 1 from ``CAVITY_RAMP_REL[1]`` below, a smoothstep between.
+
+    The roof of the cavity rides the head and its floor the jaw, whatever part of the reference's
+    (differently shaped) cavity lies nearest: nearest-point weights gave the roof of ICT's mouth
+    socket 0.3-1 of the jaw where its captured jawOpen moves it 0-0.1."""
+    line = mouth.lower[np.argsort(mouth.lower[:, 0])]
+    seam = np.interp(points[:, 0], line[:, 0], line[:, 1])  # constant past the corners
+    above, below = np.asarray(CAVITY_RAMP_REL) * mouth.width
+    return smoothstep(above, below, points[:, 1] - seam)
 
 
 def _smooth_jaw(
@@ -368,6 +387,12 @@ def transfer_rig(
     half_width = 0.5 * np.linalg.norm(mouth[0] - mouth[1])
     reach = np.linalg.norm(in_model[:, None] - mouth[None], axis=2).min(axis=1) / half_width
     cavity = np.isin(hit.faces, mesh_ref.parts.get("mouth", np.zeros(0, np.int64))) & (reach > CORNER_REACH)
+    if openings and "mouth" in openings:
+        ids = np.flatnonzero(cavity & ~in_rigid & ~soft_mouth)
+        jaw = _cavity_jaw(in_model[ids], openings["mouth"])
+        weights[ids] = 0.0
+        weights[ids, reference.bone_index("head")] = 1.0 - jaw
+        weights[ids, reference.bone_index("jaw")] = jaw
     inside = in_rigid | soft_mouth | cavity
     outer_faces = user.faces[~inside[user.faces].any(axis=1)]
     scale = reference.scale * to_rig.scale  # the head height, rig units
