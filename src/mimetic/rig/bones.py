@@ -37,8 +37,10 @@ from mimetic.rig.model import Bone
 LID_RIGID_U, LID_FREE_U = 0.2, 0.45  # lid ring parameter u where a lid bone's weight starts / ends fading
 CHIN_CORE_REL = 0.1
 """Skin this near the pogonion (× head height), below the lips and in front of the menton, rides the jaw."""
-NECK_FREE_REL = 0.25
-"""Skin this far below the menton (× head height) stays with the head."""
+NECK_FREE_REL = 0.12
+"""Skin this far below the menton (× head height, 2.7 cm) stays with the head: on ICT's captured
+jawOpen the skin 2.4-6.4 cm below the menton follows the jaw 0.04 (0.25 gave it 0.59); fitted on
+ICT's neutral, checked on its identities (benchmarks/bench_weights.py)."""
 HARMONIC_LENGTH_REL = 0.15
 """Diffusion length (× head height) of the jaw weight between the jaw's and the skull's skin."""
 CORNER_JAW = 0.5

@@ -337,8 +337,13 @@ def lid_rims(
         bottom = _chain(_envelope(low, edges, uvw, lowest=False), low, edges, uvw, width)
         if not tucked and seen is not None:  # the head's own opening, not the regions' guess
             on_span = [(uvw[m, 0] > lo) & (uvw[m, 0] < hi) & ~is_tucked[m] for m in seen]
-            up, low = (m[keep] for m, keep in zip(seen, on_span, strict=True))
-            top, bottom = _envelope(up, edges, uvw, lowest=True), _envelope(low, edges, uvw, lowest=False)
+            up_seen, low_seen = (m[keep] for m, keep in zip(seen, on_span, strict=True))
+            top_seen = _envelope(up_seen, edges, uvw, lowest=True)
+            bottom_seen = _envelope(low_seen, edges, uvw, lowest=False)
+            # unless the opening's rim is sparser than the regions' (a coarse mesh: a few vertices
+            # across the eye, where the regions' rim is the margin)
+            if len(top_seen) >= len(top) / 2 and len(bottom_seen) >= len(bottom) / 2:
+                up, low, top, bottom = up_seen, low_seen, top_seen, bottom_seen
         upper.append(up[np.argsort(uvw[up, 0], kind="stable")])
         top, bottom = _smooth_run(top, uvw, width, lowest=True), _smooth_run(bottom, uvw, width, lowest=False)
         margin.append(_overlap(top, bottom, uvw))
