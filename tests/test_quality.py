@@ -331,3 +331,21 @@ def test_ict_identity_is_deterministic_and_scales_with_sigma():
     wide = ict_identity(3, 2.0).vertices
     np.testing.assert_allclose(wide - neutral, 2 * (a.vertices - neutral), atol=1e-9)
     assert a.units == "cm" and a.n_vertices == 26_719
+
+
+def test_rigid_motion_recovers_a_known_rotation_and_translation():
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(30, 3))
+    angle = 0.4
+    turn = np.array([[1, 0, 0], [0, np.cos(angle), -np.sin(angle)], [0, np.sin(angle), np.cos(angle)]])
+    shift = np.array([0.1, -2.0, 0.5])
+    rotation, translation = quality.rigid_motion(points, points @ turn.T + shift)
+    np.testing.assert_allclose(rotation, turn, atol=1e-12)
+    np.testing.assert_allclose(translation, shift, atol=1e-12)
+
+
+def test_implied_weights_are_the_share_of_the_bone_motion_each_vertex_takes():
+    motion = np.array([[0.0, -1.0, 0.0], [0.0, -2.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    offsets = np.array([[0.0, -0.5, 0.0], [0.3, -2.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 3.0, 0.0]])
+    # half the motion; all of it (the sideways part is not the bone's); against it: 0; past it: 1
+    np.testing.assert_allclose(quality.implied_weights(offsets, motion), [0.5, 1.0, 0.0, 1.0])

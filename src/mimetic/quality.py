@@ -44,6 +44,11 @@ Definitions (lengths in rig units, ``Rig.units``; the issue's targets are in cm)
   corners) from least-squares polynomials of degree 4 in their rest ``u`` fitted to their ``v`` and
   ``w``, divided by the lid width. A smooth arc scores about 0; a sawtooth of amplitude ``a`` about
   ``a / width``. Measured on the upper margin of a wink and, as the baseline, at rest.
+* **Implied weights** (``implied_weights``): how far each vertex of a captured shape follows a
+  bone's motion: ``clip(d · r / |r|², 0, 1)`` for the captured offset ``d`` and the offset ``r`` the
+  bone's rigid motion gives the vertex (``rigid_motion``: Kabsch on points that move rigidly, such as
+  the lower teeth in a jaw opening). The weight an artist would paint there; compared with a rig's
+  skin weights as the mean absolute difference over the vertices (the Maskle paper's metric).
 * **Expression fidelity** (``expression_fidelity``): per target shape, bounded least squares of
   the channel activations on a baked basis (``mimetic.capture.prepare_solver``: the channel ranges
   as bounds, regularization 1e-3), then ``‖fit − target‖ / ‖target‖`` (Frobenius norms of the
@@ -83,12 +88,14 @@ __all__ = [
     "edge_stretch",
     "expression_fidelity",
     "find_lid_margins",
+    "implied_weights",
     "lid_gap",
     "lid_roughness",
     "lip_faces",
     "margin_gap",
     "margin_roughness",
     "matched_jaw_open",
+    "rigid_motion",
     "triangle_flips",
     "upper_lip_follow",
 ]
@@ -559,6 +566,26 @@ def closed_lids_pose(rig: Rig) -> np.ndarray:
         j = rig.channel_index(f"eyelid_upper_{side}")
         values[j] = rig.channels[j].maximum
     return values
+
+
+# --------------------------------------------------------------------------- weights
+
+
+def rigid_motion(rest: np.ndarray, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rotation (3, 3) and translation (3,) taking points ``rest`` (k, 3) closest to ``moved``
+    (k, 3) in least squares (Kabsch): ``moved ≈ rest @ R.T + t``."""
+    a, b = rest.mean(axis=0), moved.mean(axis=0)
+    u, _, vt = np.linalg.svd((rest - a).T @ (moved - b))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rotation, b - rotation @ a
+
+
+def implied_weights(offsets: np.ndarray, motion: np.ndarray) -> np.ndarray:
+    """How far each vertex follows a bone (n,) in [0, 1]: its captured ``offsets`` (n, 3) projected on
+    the bone's full ``motion`` of that vertex (n, 3), ``clip(d · r / |r|², 0, 1)``."""
+    size2 = np.einsum("nd,nd->n", motion, motion)
+    return np.clip(np.einsum("nd,nd->n", offsets, motion) / np.maximum(size2, 1e-24), 0.0, 1.0)
 
 
 # --------------------------------------------------------------------------- fidelity
