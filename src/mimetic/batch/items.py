@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from mimetic.errors import MimeticError
+from mimetic.inputs import read_text
 
 RECORDS = ".mimetic-batch"
 """The folder in OUTDIR that holds one completion record per finished item."""
@@ -126,7 +127,7 @@ def read_manifest(path: PathLike) -> list[tuple[int, str, str | None, dict[str, 
     if not path.is_file():
         raise BatchError(f"manifest {path}: no such file")
     suffix = path.suffix.lower()
-    text = path.read_text(encoding="utf-8-sig")
+    text = read_text(path, BatchError, "manifest")
     if suffix == ".csv":
         reader = csv.DictReader(text.splitlines())
         if reader.fieldnames is None or "input" not in reader.fieldnames:
