@@ -40,7 +40,7 @@ from mimetic.atomic import atomic_path, atomic_write
 from mimetic.errors import SpeechError
 from mimetic.inputs import read_text
 from mimetic.speech import nso
-from mimetic.speech.phonemes import ARPABET, ARPABET_VOWELS, parse_arpabet, text_to_phonemes
+from mimetic.speech.english import ARPABET, ARPABET_VOWELS, parse_arpabet, text_to_phonemes
 from mimetic.speech.phones import (
     LANGUAGES,
     OVERLAP_TOLERANCE_S,
