@@ -38,6 +38,9 @@ carry every parameter, and the rest of the face should still play. Unknown FAPs 
 6 surprise) at intensities 0-63: ``e = e1 × i1/63 + e2 × i2/63`` (``fap_expression_pose``, on
 the expression library). In ``fap_pose`` they give the base pose the low-level FAPs add to.
 The viseme poses are this module's own tuning: the standard names visemes only by their phonemes.
+
+Over 600 lines because the FAP table, its calibration on the rig, the visemes and the expressions
+all rest on the same FAPU measurements.
 """
 
 from __future__ import annotations
