@@ -275,7 +275,7 @@ def _runner(client: Any, workers: int | None, n_items: int) -> Iterator[_DaskRun
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
-                silence_logs=logging.CRITICAL,  # its workers log the end of a run as errors; ours are reported
+                silence_logs=logging.CRITICAL,  # workers log a run's end as errors; items report theirs
                 env=WORKER_THREADS,
                 preload=["mimetic.batch.jobs"],  # its dask_setup: the workers leave Ctrl-C to us
             )
