@@ -27,7 +27,7 @@ task_command(
     "demo",
     demo.TASK,
     """Generate the default head and 8 random heads, rig, pose, animate, lip-sync and capture them, and
-    write meshes, rigs, sheets, an animated GLB, MP4s and the ARKit-52 bake (about a minute);
+    write meshes, rigs, sheets, an animated GLB, MP4s and the ARKit-52 bake (about two minutes);
     --all adds the physics engines' sheets and a simulated jaw drop (a few minutes more).
 
     Examples:

@@ -1,4 +1,4 @@
-"""``mimetic demo`` and ``make demo``: real outputs from the built-in head, in about a minute.
+"""``mimetic demo`` and ``make demo``: real outputs from the built-in head, in about two minutes.
 
 Writes, into one folder (named steps report progress as they go):
 
