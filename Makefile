@@ -1,11 +1,11 @@
-# Two commands do all the set-up: `make demo` and `make test`.
+# Two commands do all the set-up: `make demo` and `make test` (`make demo-all`: the slow extras too).
 # Each creates .venv if needed and installs mimetic with its pinned dependencies.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test lint bench clean
+.PHONY: demo demo-all test lint bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -14,6 +14,9 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/mimetic demo
+
+demo-all: $(STAMP)
+	$(BIN)/mimetic demo --all
 	$(BIN)/python examples/real_heads.py mimetic-demo
 
 test: $(STAMP)

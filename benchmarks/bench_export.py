@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from bench_render import median_time  # the same timing helper as the render benchmark
-from mimetic.animate.clip import from_expressions
+from mimetic.animate.keyframes import from_expressions
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.export.gltf import export_glb, morph_targets_from_basis

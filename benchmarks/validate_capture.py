@@ -197,7 +197,7 @@ def flat_route(case: Case, placed) -> dict:
 def sheet(case: Case, take: Take, performance, path: Path) -> None:
     """Truth above the solved face at each act's peak (front view, no head motion)."""
     from mimetic.render.renderer import Renderer
-    from mimetic.view.sheet import save_png
+    from mimetic.view.drawing import save_png
 
     renderer = Renderer("cpu")
     camera = take_camera(case.performer, distance_cm=45.0, fov_y_deg=FOV_DEG)

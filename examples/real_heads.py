@@ -1,6 +1,6 @@
-"""Rig real scanned heads from the shared test data and write what ``make demo`` shows of them.
+"""Rig real scanned heads from the shared test data and write what ``make demo-all`` shows of them.
 
-Run by ``make demo`` after ``mimetic demo``: ``python examples/real_heads.py [OUT_DIR]`` (default
+Run by ``make demo-all`` after ``mimetic demo --all``: ``python examples/real_heads.py [OUT_DIR]`` (default
 ``mimetic-demo``). It needs the shared data folder (``../shared/data`` beside the repository, or
 ``$MIMETIC_SHARED_DATA``) and says so, without failing, when that is absent.
 

@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from mimetic.animate.clip import from_expressions, load_clip
-from mimetic.demo import ANIMATION
+from mimetic.animate.clipfiles import load_clip
+from mimetic.animate.keyframes import from_expressions
 from mimetic.engines import ENGINES
 from mimetic.head.model import make_head
 from mimetic.mesh.io import load_mesh, save_mesh
 from mimetic.mesh.model import Mesh
 from mimetic.rig.format import load_rig
+from mimetic.tasks.demo import ANIMATION, FAST_ENGINES
 from mimetic.testing import run_cli
 
 RES = "2500"
@@ -97,10 +98,9 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         "default_views.png",
         "heads_muscles.png",
         "expressions_closeup.png",
-        *(f"muscles_{engine}.png" for engine in ENGINES),
-        *(f"expressions_{engine}.png" for engine in ENGINES if engine != "wire"),
+        *(f"muscles_{engine}.png" for engine in FAST_ENGINES),
+        *(f"expressions_{engine}.png" for engine in FAST_ENGINES if engine != "wire"),
         "expressions_engines.png",
-        "jaw_drop_tissue.mp4",
         "talk.mp4",
         "talk.clip.json",
         "capture.mp4",
@@ -123,6 +123,24 @@ def test_demo_writes_heads_rigs_and_sheets(tmp_path):
         load_rig(out / "rigs" / "seed_5.mrig").metadata["params"]
         != load_rig(out / "default.mrig").metadata["params"]
     )
+    # the physics engines wait for --all: a first run stays quick
+    assert not (out / "muscles_tissue.png").exists() and not (out / "jaw_drop_tissue.mp4").exists()
+    lines = result.stderr.splitlines()  # piped: one plain line per named step, and no warning
+    assert any("] heads" in line for line in lines) and any("] capture: " in line for line in lines)
+    assert not [line for line in lines if "warning" in line.lower()], lines
+
+
+def test_demo_all_adds_the_physics_engines(tmp_path):
+    out = tmp_path / "demo"
+    result = run_cli("demo", "--all", "-o", str(out), "--resolution", 1500)
+    assert result.exit_code == 0, result.output
+    for name in (
+        *(f"muscles_{engine}.png" for engine in ENGINES),
+        *(f"expressions_{engine}.png" for engine in ENGINES if engine != "wire"),
+        "jaw_drop_tissue.mp4",
+    ):
+        assert (out / name).stat().st_size > 1000, name
+    assert "warning" not in result.stderr.lower()
 
 
 # --- bad input: a clear one-line error, exit code 1, no file overwritten ------------------------
@@ -259,12 +277,12 @@ def test_every_command_help_shows_examples():
 
 
 def test_an_unexpected_error_is_one_line_without_a_traceback(rig_file, tmp_path, monkeypatch):
-    import mimetic.rig.format as rig_format
+    import mimetic.tasks.prepared as prepared
 
     def broken(path):
         raise ZeroDivisionError("division by zero")
 
-    monkeypatch.setattr(rig_format, "load_rig", broken)
+    monkeypatch.setattr(prepared, "prepared_rig", broken)
     result = run_cli("pose", rig_file, "-o", tmp_path / "x.png")
     assert result.exit_code == 1
     (line,) = result.output.strip().splitlines()
@@ -275,13 +293,13 @@ def test_an_unexpected_error_is_one_line_without_a_traceback(rig_file, tmp_path,
 
 def test_error_messages_keep_their_brackets(rig_file, tmp_path, monkeypatch):
     """Messages are printed as text: an install hint's [track] is not eaten as rich markup."""
-    import mimetic.rig.format as rig_format
+    import mimetic.tasks.prepared as prepared
     from mimetic.errors import MissingExtraError, install_hint
 
     def missing(path):
         raise MissingExtraError(f"face tracking needs the optional extra [track]: {install_hint('track')}")
 
-    monkeypatch.setattr(rig_format, "load_rig", missing)
+    monkeypatch.setattr(prepared, "prepared_rig", missing)
     result = run_cli("pose", rig_file, "-o", tmp_path / "x.png")
     assert (
         result.exit_code == 1 and "[track]" in result.output and "pip install -e '.[track]'" in result.output
@@ -323,7 +341,7 @@ def test_long_lines_are_not_wrapped_when_piped(tmp_path):
 def test_progress_counts_only_a_known_total():
     from rich.progress import Progress
 
-    from mimetic.cli import _Count
+    from mimetic.cli.app import _Count
 
     with Progress() as bar:
         task = bar.add_task("x", total=None)

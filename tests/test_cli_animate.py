@@ -6,7 +6,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
-from mimetic.animate.clip import load_clip
+from mimetic.animate.clipfiles import load_clip
 from mimetic.rig.format import save_rig
 from mimetic.testing import run_cli, small_rig
 

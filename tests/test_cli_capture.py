@@ -8,7 +8,7 @@ import numpy as np
 import pygltflib
 import pytest
 
-from mimetic.animate.clip import load_clip
+from mimetic.animate.clipfiles import load_clip
 from mimetic.capture import Trajectories, marker_set, write_trajectories
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
@@ -43,10 +43,8 @@ def files(tmp_path_factory):
 
 def test_solve_writes_a_clip_with_the_jaw_and_the_head(files):
     rig_file, trc, folder, jaw, yaw = files
-    out, report = folder / "take.json", folder / "report.json"
-    result = run_cli(
-        "capture", "solve", rig_file, trc, "--channels", "jaw_open", "--report", report, "-o", out
-    )
+    out, report = folder / "take.json", folder / "take.report.json"  # the report goes beside the clip
+    result = run_cli("capture", "solve", rig_file, trc, "--channels", "jaw_open", "-o", out)
     assert result.exit_code == 0, result.output
     assert "1 channels from 68 ibug68 markers" in result.output
     clip = load_clip(out).sample(FPS)

@@ -137,3 +137,25 @@ def test_export_of_a_z_up_head_is_an_upright_glb(z_up_rig):
     skin = read_accessor(doc, doc.meshes[0].primitives[0].attributes.POSITION)
     extent = np.ptp(skin, axis=0)
     assert np.argmax(extent[:2]) == 1 and 0.15 < extent[1] < 0.35  # metres, tall along +Y
+
+
+def test_rig_of_a_real_head_as_a_triangle_soup_stays_within_2_gib(tmp_path):
+    """ICT's head unwelded into a soup (52,220 triangles, 156,660 vertices), rigged from the command
+    line in a fresh process: it used to be killed at 16 GiB inside mesh validation."""
+    from mimetic.fit.landmarks import write_landmarks
+    from mimetic.testing import ict_landmarks, load_ict, require_shared_data, triangle_soup
+    from mimetic.testing.memory import peak_rss
+
+    neutral, meta = load_ict(require_shared_data("ict-facekit"))
+    save_mesh(triangle_soup(neutral), tmp_path / "soup.obj")
+    write_landmarks(ict_landmarks(neutral, meta), tmp_path / "soup.json")
+    code = (
+        "from mimetic.cli import app\n"
+        "try:\n"
+        "    app(['rig', 'soup.obj', '--landmarks', 'soup.json', '-o', 'soup.mrig'])\n"
+        "except SystemExit as end:\n"
+        "    assert not end.code, end.code\n"
+    )
+    measured = peak_rss(code, cwd=tmp_path)
+    assert load_rig(tmp_path / "soup.mrig").n_vertices == 156_660
+    assert measured.peak_gib < 2.0, f"peak {measured.peak_gib:.2f} GiB"

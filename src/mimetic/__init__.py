@@ -24,6 +24,10 @@ Meshes: ``load_mesh``, ``save_mesh``, ``Mesh``. The built-in head: ``make_head``
 ``load_library``, ``arkit_pose``, ``facs_pose``, ``Clip``, ``from_expressions``, ``load_clip``,
 ``save_clip``. Delivering: ``export_glb``, ``export_usd``, ``export_obj_sequence``,
 ``morph_targets``, ``arkit_shapes``, ``render_mesh``, ``render_pose``, ``render_clip``, ``save_image``.
+Speech: ``lip_sync``, ``load_timings``. Capture: ``Trajectories``, ``read_trajectories``,
+``track_video``, ``marker_set``, ``solve_performance``, ``retarget``. Many at once: ``run_batch``,
+``rig_many``, ``animate_many``, ``render_many``, ``speak_many``, ``capture_many``. Every command as a
+task: ``TASKS`` (``mimetic.tasks``).
 
 Coordinates are right-handed, +Y up, +Z forward (the face looks down +Z), as in glTF.
 Lengths keep the source mesh's units; the rig records them.
@@ -77,9 +81,9 @@ _API = {
     "load_library": "mimetic.animate.expressions",
     "arkit_pose": "mimetic.animate.arkit",
     "facs_pose": "mimetic.animate.facs",
-    "from_expressions": "mimetic.animate.clip",
-    "load_clip": "mimetic.animate.clip",
-    "save_clip": "mimetic.animate.clip",
+    "from_expressions": "mimetic.animate.keyframes",
+    "load_clip": "mimetic.animate.clipfiles",
+    "save_clip": "mimetic.animate.clipfiles",
     "export_glb": "mimetic.export.gltf",
     "morph_targets": "mimetic.export.gltf",
     "export_usd": "mimetic.export.usd",
@@ -88,7 +92,22 @@ _API = {
     "render_mesh": ("mimetic.render", "render"),
     "render_pose": "mimetic.view.sheets",
     "render_clip": "mimetic.view.video",
-    "save_image": "mimetic.view.sheet",
+    "save_image": "mimetic.view.drawing",
+    "lip_sync": "mimetic.speech.lipsync",
+    "load_timings": "mimetic.speech.timings",
+    "Trajectories": "mimetic.capture.trajectories",
+    "read_trajectories": "mimetic.capture.formats",
+    "track_video": "mimetic.capture.video",
+    "marker_set": "mimetic.capture.markers",
+    "solve_performance": "mimetic.capture.performance",
+    "retarget": "mimetic.capture.retarget",
+    "run_batch": "mimetic.batch.run",
+    "rig_many": "mimetic.batch.run",
+    "animate_many": "mimetic.batch.run",
+    "render_many": "mimetic.batch.run",
+    "speak_many": "mimetic.batch.run",
+    "capture_many": "mimetic.batch.run",
+    "TASKS": "mimetic.tasks",
 }
 
 __all__ = [

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import re
 import warnings
 
@@ -12,26 +11,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import mimetic.animate.clip as clip_module
-from mimetic.animate.clip import (
-    BSplineEdit,
-    ClipError,
-    Curve,
-    Key,
-    KeyframeClip,
-    Layer,
-    fit_displacement,
-    from_clip,
-    from_expressions,
-    from_poses,
-    key_tangents,
-    load_clip,
-    load_csv,
-    parse_key_spec,
-    save_clip,
-    save_csv,
-)
+import mimetic.animate.clipfiles as clip_module
+from mimetic.animate.clipfiles import load_clip, load_csv, save_clip, save_csv
+from mimetic.animate.curves import BSplineEdit, ClipError, Curve, Key, fit_displacement, key_tangents
 from mimetic.animate.expressions import expression_pose
+from mimetic.animate.keyframes import KeyframeClip, Layer, from_clip, from_expressions, from_poses
 from mimetic.errors import MimeticError, MimeticWarning
 from mimetic.rig.activations import Clip, pose
 from mimetic.rig.model import Channel
@@ -737,42 +721,3 @@ def test_load_csv_accepts_uneven_times_and_blank_lines(tmp_path):
     clip = load_csv(path)
     assert clip.duration_s == 1.0
     np.testing.assert_allclose(clip.channel_values("a", [0.15, 0.3, 0.65]), [0.3, 0.6, 0.4], atol=1e-15)
-
-
-# --------------------------------------------------------------------------- key specs
-
-
-@pytest.mark.parametrize(
-    ("spec", "expected"),
-    [
-        ("jaw_open@1.25=0.3", ("jaw_open", 1.25, 0.3)),
-        (" zygomatic_major_L @ 2s = -0.5 ", ("zygomatic_major_L", 2.0, -0.5)),
-        ("a@0=1e-3", ("a", 0.0, 0.001)),
-    ],
-)
-def test_parse_key_spec_reads_channel_time_value(spec, expected):
-    assert parse_key_spec(spec) == expected
-
-
-@pytest.mark.parametrize(
-    ("spec", "match"),
-    [
-        ("jaw_open=0.3", "must look like CHANNEL@TIME_S=VALUE"),
-        ("jaw_open@1.25", "must look like CHANNEL@TIME_S=VALUE"),
-        ("jaw_open=0.3@1", "must look like CHANNEL@TIME_S=VALUE"),
-        ("@1=0.3", "'' is not a channel name"),
-        ("jaw_open@soon=0.3", "the time 'soon' is not a number"),
-        ("jaw_open@1=nan", "the value 'nan' must be finite"),
-    ],
-)
-def test_parse_key_spec_rejects_malformed_specs(spec, match):
-    with pytest.raises(ClipError, match=match):
-        parse_key_spec(spec)
-
-
-def test_parse_key_spec_feeds_edit():
-    clip = two_channel_clip()
-    channel, time_s, value = parse_key_spec("b@2.5=0.42")
-    edited = clip.edit(channel, {time_s: value})
-    assert edited.channel_values("b", time_s) == pytest.approx(0.42, abs=1e-12)
-    assert math.isfinite(edited.duration_s)

@@ -253,3 +253,20 @@ def test_low_level_faps_add_to_the_high_level_base(rig, calibration):
     j = rig.channel_index("zygomatic_major_L")
     assert pose[j] > base[j]
     assert pose[rig.channel_index("jaw_open")] == base[rig.channel_index("jaw_open")]
+
+
+def test_a_calibration_takes_a_deform_function_or_a_baked_basis(rig, engine, calibration):
+    """A calibration needs poses deformed, not an engine of its own making: any deform function
+    gives the engine's curves exactly, and a baked basis (what a capture or a batch already holds)
+    reaches as far within a few per cent."""
+    from mimetic.engines.bake import bake
+
+    same = calibrate_faps(rig, engine=engine.deform)
+    assert same.curves.keys() == calibration.curves.keys()
+    for key, (_, motion) in calibration.curves.items():
+        np.testing.assert_array_equal(same.curves[key][1], motion)
+    baked = calibrate_faps(rig, engine=bake(engine, correctives=0, samples=2).basis)
+    for number in (3, 6, 12, 31):  # the jaw, a lip corner, a mouth corner up, an inner brow
+        assert baked.reach(number) == pytest.approx(calibration.reach(number), rel=0.05), number
+    with pytest.raises(FapError, match="give an engine name, an engine, a baked Basis or a deform function"):
+        calibrate_faps(rig, engine=42)

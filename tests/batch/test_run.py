@@ -8,22 +8,28 @@ reference of the same size, with landmark files, so the whole file takes well un
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import signal
+import socket
+import subprocess
 import sys
+import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 from mimetic.batch import BatchError, rig_many, run_batch
-from mimetic.batch.items import Option
-from mimetic.batch.jobs import JOBS, Job
 from mimetic.errors import MimeticError, MissingExtraError
 from mimetic.fit.landmarks import write_landmarks
 from mimetic.mesh.io import save_mesh
 from mimetic.rig.format import load_rig
 from mimetic.rig.model import rigs_equal
+from mimetic.tasks import BATCH_TASKS
+from mimetic.tasks.base import Result, Task, TaskOptions
 from mimetic.testing import head_landmarks, run_cli, small_head
 
 RESOLUTION = 1_500
@@ -152,22 +158,28 @@ def test_rig_many_without_dask_runs_on_a_process_pool(rigged, heads, tmp_path, m
 # --------------------------------------------------------------------------- retries, without meshes
 
 
+@dataclass(frozen=True)
+class FlakyOptions(TaskOptions):
+    """A task with no options of its own."""
+
+
 @pytest.fixture
 def flaky(monkeypatch, tmp_path):
-    """A job kind "flaky" whose items fail unexpectedly on their first attempt (an OSError), or with bad
-    input every time (a MimeticError) when their input's name says "bad"; counts attempts per item."""
+    """A batch kind "flaky" whose items fail unexpectedly on their first attempt (an OSError), or with
+    bad input every time (a MimeticError) when their input's name says "bad"; counts attempts per item."""
     attempts: dict[str, int] = {}
 
-    def run(item) -> float:
-        attempts[item.name] = attempts.get(item.name, 0) + 1
-        if "bad" in item.name:
-            raise MimeticError(f"{item.name}: bad input, fix it")
-        if attempts[item.name] == 1:
+    def run(source, output, options, progress=None) -> Result:
+        name = Path(source).stem
+        attempts[name] = attempts.get(name, 0) + 1
+        if "bad" in name:
+            raise MimeticError(f"{name}: bad input, fix it")
+        if attempts[name] == 1:
             raise OSError("the file server hiccuped\n(try again)")
-        Path(item.outputs[0]).write_text("done")
-        return 0.5
+        Path(output).write_text("done")
+        return Result((Path(output),), "done", 0.5)
 
-    monkeypatch.setitem(JOBS, "flaky", Job(run, {"format": Option("text", "txt")}, (".txt",)))
+    monkeypatch.setitem(BATCH_TASKS, "flaky", Task("flaky", FlakyOptions, run, (".txt",)))
     for name in ("a", "b", "bad"):
         (tmp_path / f"{name}.in").write_text("x")
     return tmp_path, attempts
@@ -195,7 +207,7 @@ def test_run_batch_retries_on_dask(flaky):
         warnings.filterwarnings("ignore", message="Port .* is already in use")  # the session cluster's
         cluster = distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=None)
     with cluster:
-        with distributed.Client(cluster) as client:  # threads in this process: the patched JOBS
+        with distributed.Client(cluster) as client:  # threads in this process: the patched tasks
             manifest = run_batch("flaky", folder / "*.in", folder / "out", client=client, retries=2)
     assert [r.status for r in manifest.rows] == ["ok", "ok", "failed"]
     assert attempts == {"a": 2, "b": 2, "bad": 1}
@@ -218,3 +230,51 @@ def test_every_batch_command_help_shows_examples():
         result = run_cli("batch", sub, "--help")
         assert result.exit_code == 0 and "Examples:" in result.output, sub
         assert f"mimetic batch {sub}" in result.output, sub
+
+
+# --------------------------------------------------------------- interrupts and unreachable clusters
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def test_an_unreachable_scheduler_fails_within_10_s_and_leaves_nothing(heads, tmp_path):
+    out = tmp_path / "never"
+    start = time.monotonic()
+    result = run_cli(
+        "batch", "render", heads / "head0.glb", "--scheduler", f"tcp://127.0.0.1:{_free_port()}", "-o", out
+    )
+    assert time.monotonic() - start < 10
+    assert result.exit_code == 1
+    (line,) = result.output.strip().splitlines()
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:" in line
+    assert not out.exists()  # no empty output folder left behind
+
+
+def test_ctrl_c_in_a_batch_is_one_line_and_exit_code_130(tmp_path):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C sends it, once the items run: the
+    batch says "interrupted" and nothing else (its workers stay quiet), exit code 130."""
+    head = small_head(0, RESOLUTION)
+    for k in range(40):
+        save_mesh(head.mesh, tmp_path / f"h{k:02d}.obj")
+    command = [sys.executable, "-c", "from mimetic.command import main; main()", "batch", "render",
+               str(tmp_path / "h*.obj"), "--workers", "2", "-o", str(tmp_path / "out")]  # fmt: skip
+    batch = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                             start_new_session=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        line = ""
+        while "ok" not in line and time.monotonic() < deadline and batch.poll() is None:
+            line = batch.stderr.readline()  # piped: one line per step ("render: 1 ok")
+        assert "ok" in line, "the batch never reported a finished item"
+        os.killpg(batch.pid, signal.SIGINT)
+        _, err = batch.communicate(timeout=60)
+    finally:
+        if batch.poll() is None:
+            os.killpg(batch.pid, signal.SIGKILL)
+    assert batch.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "interrupted"
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from mimetic.animate.clip import from_clip
+from mimetic.animate.keyframes import from_clip
 from mimetic.capture import (
     CaptureError,
     Performance,

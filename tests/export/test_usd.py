@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mimetic.animate.clip import from_expressions
+from mimetic.animate.keyframes import from_expressions
 from mimetic.atomic import WriteError
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake

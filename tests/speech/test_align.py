@@ -19,7 +19,7 @@ import pytest
 from mimetic.errors import MissingExtraError, SpeechError
 from mimetic.speech import nso
 from mimetic.speech.align import FRAME_S, align_audio, pcm16, read_wav, synthesize
-from mimetic.speech.phonemes import ARPABET, text_to_phonemes
+from mimetic.speech.english import ARPABET, text_to_phonemes
 from mimetic.speech.phones import SILENCE
 from mimetic.speech.timings import boundary_errors, load_timings
 from mimetic.testing import require_extra, require_shared_data

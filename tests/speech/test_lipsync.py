@@ -4,6 +4,7 @@ scene files, timings), against the data and the phones they were given."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import wave
@@ -12,7 +13,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
-from mimetic.animate.clip import load_clip
+from mimetic.animate.clipfiles import load_clip
 from mimetic.errors import SpeechError
 from mimetic.rig.format import save_rig
 from mimetic.speech.coarticulation import EYE_CHANNELS
@@ -126,8 +127,8 @@ def test_a_long_synthesized_sentence_is_spoken_and_aligned(tmp_path):
     require_extra("pocketsphinx", "speech")
     if shutil.which("espeak-ng") is None:
         pytest.skip("the espeak-ng program is not installed (apt-get install espeak-ng)")
-    from mimetic.demo import TALK
-    from mimetic.speech.phonemes import text_to_phonemes
+    from mimetic.speech.english import text_to_phonemes
+    from mimetic.tasks.demo import TALK
 
     speech = lip_sync(small_rig(), text=TALK, synthesize_to=tmp_path / "talk.wav")
     lip = {"B", "P", "M", "F", "V", "W"}
@@ -145,7 +146,7 @@ def test_speak_scenes_carry_the_animation(rig_file, tmp_path, suffix):
     out = tmp_path / f"hello{suffix}"
     result = run_cli("speak", rig_file, "--text", "Hello, Bob.", "-o", out, "--fps", 24, "--no-eyes")
     assert result.exit_code == 0, result.output
-    frames = int(result.output.split("(")[1].split()[0])
+    frames = int(re.search(r"(\d+) frames at 24 fps", result.output).group(1))  # the summary line
     if suffix == ".glb":
         from pygltflib import GLTF2
 

@@ -9,7 +9,7 @@ import pytest
 
 from mimetic.errors import SpeechError
 from mimetic.speech import nso
-from mimetic.speech.phonemes import ARPABET
+from mimetic.speech.english import ARPABET
 from mimetic.speech.phones import SILENCE
 
 

@@ -10,7 +10,7 @@ from praatio import textgrid
 
 from mimetic.errors import SpeechError
 from mimetic.speech import nso, timings
-from mimetic.speech.phonemes import ARPABET_VOWELS, text_to_phonemes
+from mimetic.speech.english import ARPABET_VOWELS, text_to_phonemes
 from mimetic.speech.phones import SILENCE, Phone, PhoneTimings
 from mimetic.speech.timings import (
     PAUSE_S,

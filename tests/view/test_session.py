@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from mimetic.animate.arkit import arkit_pose
-from mimetic.animate.clip import from_poses, load_clip
+from mimetic.animate.clipfiles import load_clip
 from mimetic.animate.controls import apply_descriptive
 from mimetic.animate.expressions import expression_pose
 from mimetic.animate.facs import facs_pose
+from mimetic.animate.keyframes import from_poses
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake, evaluate_rigid
 from mimetic.rig.activations import pose as rig_pose

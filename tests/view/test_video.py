@@ -11,7 +11,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
-from mimetic.animate.clip import from_expressions
+from mimetic.animate.keyframes import from_expressions
 from mimetic.engines import bake, evaluate_basis, make_engine
 from mimetic.errors import MimeticWarning
 from mimetic.rig.activations import Clip

@@ -19,14 +19,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from mimetic.animate.clip import from_poses, load_clip, save_clip
+from mimetic.animate.clipfiles import load_clip, save_clip
 from mimetic.animate.expressions import expression_pose
+from mimetic.animate.keyframes import from_poses
 from mimetic.engines import make_engine
 from mimetic.fit.landmarks import MIN_LANDMARKS, read_landmarks
 from mimetic.mesh.io import save_mesh
 from mimetic.mesh.model import Mesh
 from mimetic.rig.format import save_rig
-from mimetic.testing import require_extra
+from mimetic.testing import require_extra, run_cli
 from mimetic.view.session import PICK_LANDMARKS
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
@@ -326,6 +327,15 @@ def free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         return probe.getsockname()[1]
+
+
+def test_cli_refuses_a_missing_rig_at_once_without_serving(tmp_path):
+    """Nothing to show: one line and exit code 1 before any server starts (a corrupt rig, below, is
+    served so that the page can explain it)."""
+    result = run_cli("view", tmp_path / "nowhere.mrig", "--port", str(free_port()))
+    assert result.exit_code == 1
+    (line,) = result.output.strip().splitlines()
+    assert "nowhere.mrig: no such file" in line and "http://" not in result.output
 
 
 def test_cli_reports_a_corrupt_rig_in_the_terminal_and_a_busy_port(web, tmp_path):

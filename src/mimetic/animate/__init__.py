@@ -4,7 +4,8 @@ and MPEG-4 control layers, and keyframed clips.
 ``apply_descriptive(rig, {"Smile/Wide": (0.4, 1.0)})`` turns the thesis's descriptive sliders
 into channel values; ``blend(rig, [("joy", 0.7), ("surprise", 0.5)])`` turns named expressions
 into a pose; ``mimetic.animate.facs``, ``.arkit`` and ``.mpeg4`` do the same for action units,
-ARKit blendshape weights and MPEG-4 FAPs; ``mimetic.animate.clip`` keys poses over time. All talk
+ARKit blendshape weights and MPEG-4 FAPs; ``mimetic.animate.keyframes`` keys poses over time
+(curves in ``.curves``, files in ``.clipfiles``). All talk
 only to the rig's channels (the activation pivot).
 """
 

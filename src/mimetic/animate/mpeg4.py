@@ -38,6 +38,9 @@ carry every parameter, and the rest of the face should still play. Unknown FAPs 
 6 surprise) at intensities 0-63: ``e = e1 × i1/63 + e2 × i2/63`` (``fap_expression_pose``, on
 the expression library). In ``fap_pose`` they give the base pose the low-level FAPs add to.
 The viseme poses are this module's own tuning: the standard names visemes only by their phonemes.
+
+Over 600 lines because the FAP table, its calibration on the rig, the visemes and the expressions
+all rest on the same FAPU measurements.
 """
 
 from __future__ import annotations
@@ -48,7 +51,7 @@ import logging
 import math
 import warnings
 import weakref
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -57,7 +60,8 @@ from types import MappingProxyType
 import numpy as np
 
 from mimetic.animate.expressions import ExpressionLibrary, blend
-from mimetic.engines import Engine, make_engine
+from mimetic.engines import Engine
+from mimetic.engines.basis import Basis
 from mimetic.errors import MimeticError, MimeticWarning
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig
@@ -434,23 +438,50 @@ class FapCalibration:
         return float(np.interp(target, s, t)) * self.drivers[(number, direction)], problem
 
 
-def calibrate_faps(rig: Rig, *, engine: str | Engine = "wire", samples: int = 13) -> FapCalibration:
+Deform = Callable[[np.ndarray], np.ndarray]
+"""Vertex positions (n, 3) of one pose (c,) in the rig's channel order: ``engine.deform``, or a
+baked basis evaluated (``evaluate_basis``)."""
+
+
+def _deform(rig: Rig, engine: str | Engine | Basis | Deform) -> Deform:
+    """``engine`` as a deform function: a named engine is made for ``rig``, a basis evaluated."""
+    if isinstance(engine, str):
+        from mimetic.engines import make_engine
+
+        return make_engine(rig, engine).deform
+    if isinstance(engine, Basis):
+        from mimetic.engines.basis import evaluate_basis
+
+        return lambda values: evaluate_basis(engine, values)
+    deform = getattr(engine, "deform", engine)
+    if not callable(deform):
+        raise FapError(
+            f"engine={engine!r}: give an engine name, an engine, a baked Basis or a deform function"
+        )
+    return deform
+
+
+def calibrate_faps(
+    rig: Rig, *, engine: str | Engine | Basis | Deform = "wire", samples: int = 13
+) -> FapCalibration:
     """Measure the response of every supported low-level FAP on ``rig``.
 
-    Each driver is scaled to ``samples`` values of t in [0, 1]; the engine deforms the rig and the
-    FAP's feature point motion along its axis is recorded (about ``samples`` × 60 engine
-    evaluations; 1-2 s on a 13k-vertex head). Driver values outside a channel's range are clipped.
+    Each driver is scaled to ``samples`` values of t in [0, 1]; ``engine`` deforms the rig and the
+    FAP's feature point motion along its axis is recorded (about ``samples`` × 60 evaluations; 1-2 s
+    on a 13k-vertex head with the wire engine, a fraction of that on a baked basis). ``engine`` is an
+    engine's name (made here), an engine, a baked ``Basis`` or any deform function (pose → vertices).
+    Driver values outside a channel's range are clipped.
     """
     if samples < 2:
         raise FapError(f"samples={samples} must be at least 2")
-    engine = make_engine(rig, engine) if isinstance(engine, str) else engine
+    deform = _deform(rig, engine)
     channels = rig.channel_names
     index = {n: j for j, n in enumerate(channels)}
     base = np.array([c.default for c in rig.channels], dtype=np.float64)
     points = _feature_point_vertices(rig)
     fapu = measure_fapu(rig)
     ts = np.linspace(0.0, 1.0, samples)
-    rest = _positions(engine.deform(base), points)
+    rest = _positions(deform(base), points)
     groups: dict[tuple, list[tuple[int, str]]] = {}
     vectors: dict[tuple[int, str], np.ndarray] = {}
     for spec in fap_table().values():
@@ -470,10 +501,7 @@ def calibrate_faps(rig: Rig, *, engine: str | Engine = "wire", samples: int = 13
     drivers = {}
     for members in groups.values():
         vector = vectors[members[0]]
-        moved = [
-            _positions(engine.deform(check_activations(rig, base + t * vector, clip=True)), points)
-            for t in ts
-        ]
+        moved = [_positions(deform(check_activations(rig, base + t * vector, clip=True)), points) for t in ts]
         clipped = check_activations(rig, base + vector, clip=True) - base
         for number, direction in members:
             spec = fap_table()[number]

@@ -26,9 +26,14 @@ from pathlib import Path
 from typing import Any
 
 from mimetic.errors import MimeticError
+from mimetic.inputs import read_text
+from mimetic.tasks.base import OptionSpec, TaskError, specs
 
 RECORDS = ".mimetic-batch"
 """The folder in OUTDIR that holds one completion record per finished item."""
+
+FORMAT = "format"
+"""The one batch option that is not its task's: the main output's format (its suffix, no dot)."""
 
 MANIFEST_NAMES = ("batch-{kind}.json", "batch-{kind}.csv")
 """The manifest of results a batch writes into OUTDIR (JSON and CSV)."""
@@ -39,19 +44,6 @@ PathLike = str | os.PathLike[str]
 class BatchError(MimeticError, ValueError):
     """A batch that cannot start: no inputs, a glob that matches nothing, an unknown option, a malformed
     manifest file, two items writing the same file."""
-
-
-@dataclass(frozen=True)
-class Option:
-    """One job option: its type, default and, for text, the values it takes (empty: any).
-
-    Types: ``path`` (a file, made absolute), ``text``, ``int``, ``float``, ``bool``, and
-    ``name_or_path``: one of ``choices`` (a built-in name) or else a file.
-    """
-
-    kind: str
-    default: Any = None
-    choices: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -126,7 +118,7 @@ def read_manifest(path: PathLike) -> list[tuple[int, str, str | None, dict[str, 
     if not path.is_file():
         raise BatchError(f"manifest {path}: no such file")
     suffix = path.suffix.lower()
-    text = path.read_text(encoding="utf-8-sig")
+    text = read_text(path, BatchError, "manifest")
     if suffix == ".csv":
         reader = csv.DictReader(text.splitlines())
         if reader.fieldnames is None or "input" not in reader.fieldnames:
@@ -159,8 +151,27 @@ def read_manifest(path: PathLike) -> list[tuple[int, str, str | None, dict[str, 
     return parsed
 
 
-def coerce(name: str, value: Any, spec: Option, base: Path, where: str) -> Any:
-    """An option's value as its job takes it: text from a CSV cell or the command line parsed, a path
+def batch_options(kind: str) -> dict[str, OptionSpec]:
+    """The options of batch ``kind``: its task's (``mimetic.tasks.BATCH_TASKS``) that a batch can share
+    between items, and ``format`` (the main output's suffix, without the dot) when it writes more
+    than one."""
+    from mimetic.tasks import BATCH_TASKS
+
+    if kind not in BATCH_TASKS:
+        raise BatchError(f"unknown batch job {kind!r}; use one of {', '.join(BATCH_TASKS)}")
+    task = BATCH_TASKS[kind]
+    out = {name: spec for name, spec in specs(task.options).items() if spec.batch}
+    if len(task.outputs) > 1:
+        formats = tuple(dict.fromkeys(suffix[1:] for suffix in task.outputs))
+        out[FORMAT] = OptionSpec(
+            FORMAT, "text", formats[0], False, "What to write per item.", "--format", None, formats, (),
+            None, None, None, True, None, None,
+        )  # fmt: skip
+    return out
+
+
+def coerce(name: str, value: Any, spec: OptionSpec, base: Path, where: str) -> Any:
+    """An option's value as its task takes it: text from a CSV cell or the command line parsed, a path
     made absolute against ``base`` (a ``{stem}`` or ``{dir}`` template is kept for ``resolve_template``)."""
     if value is None:
         return None
@@ -182,7 +193,7 @@ def coerce(name: str, value: Any, spec: Option, base: Path, where: str) -> Any:
         wanted = {"bool": "true or false", "int": "whole number", "float": "number"}[spec.kind]
         raise BatchError(f"{where}: option {name}={value!r} is not a {wanted}") from None
     text = os.fspath(value) if isinstance(value, os.PathLike) else str(value)
-    if spec.kind == "path" or (spec.kind == "name_or_path" and text not in spec.choices):
+    if spec.kind == "path" or (spec.kind == "name_or_path" and text not in spec.names):
         return text if "{" in text else str((base / text).resolve())
     if spec.choices and text not in spec.choices:
         raise BatchError(f"{where}: option {name}={text!r}; use one of {', '.join(spec.choices)}")
@@ -253,13 +264,12 @@ def collect_items(
         Nothing to do, an unknown option or value, a required option missing, an output outside
         OUTDIR, two items writing the same file.
     """
-    from mimetic.batch.jobs import JOBS
+    from mimetic.tasks import BATCH_TASKS
 
-    if kind not in JOBS:
-        raise BatchError(f"unknown batch job {kind!r}; use one of {', '.join(JOBS)}")
-    job = JOBS[kind]
+    accepted = batch_options(kind)
+    task = BATCH_TASKS[kind]
     out_dir = Path(out_dir).resolve()
-    batch = _options(kind, job.options, options or {}, Path.cwd(), f"batch {kind}")
+    batch = _options(kind, accepted, options or {}, Path.cwd(), f"batch {kind}")
     sources: list[tuple[int | None, Path, str | None, dict]] = [
         (None, path, None, {}) for path in expand_inputs(paths)
     ]
@@ -267,58 +277,61 @@ def collect_items(
         base = Path(manifest).resolve().parent
         for number, source, output, row in read_manifest(manifest):
             where = f"manifest {Path(manifest).name}, row {number}"
-            sources.append((number, base / source, output, _options(kind, job.options, row, base, where)))
+            sources.append((number, base / source, output, _options(kind, accepted, row, base, where)))
     if not sources:
         raise BatchError(f"batch {kind}: nothing to do; give input files (paths or globs) or a manifest")
-    defaults = {name: spec.default for name, spec in job.options.items()}
+    defaults = {name: spec.default for name, spec in accepted.items()}
     items = [
-        _item(kind, job, number, source.resolve(), output, defaults | batch | row, out_dir, manifest)
+        _item(
+            kind, task, accepted, number, source.resolve(), output, defaults | batch | row, out_dir, manifest
+        )
         for number, source, output, row in sources
     ]
     _check_unique(items, out_dir, kind)
     return items
 
 
-def _options(kind: str, specs: Mapping[str, Option], given: Mapping, base: Path, where: str) -> dict:
-    unknown = sorted(set(given) - set(specs))
+def _options(kind: str, accepted: Mapping[str, OptionSpec], given: Mapping, base: Path, where: str) -> dict:
+    unknown = sorted(set(given) - set(accepted))
     if unknown:
         raise BatchError(
-            f"{where}: unknown option(s) {', '.join(unknown)}; batch {kind} takes {', '.join(specs)}"
+            f"{where}: unknown option(s) {', '.join(unknown)}; batch {kind} takes {', '.join(accepted)}"
         )
     given = {name: value for name, value in given.items() if value is not None}
-    return {name: coerce(name, value, specs[name], base, where) for name, value in given.items()}
+    return {name: coerce(name, value, accepted[name], base, where) for name, value in given.items()}
 
 
-def _item(kind, job, number, source: Path, output, options: dict, out_dir: Path, manifest) -> Item:
+def _item(kind, task, accepted, number, source: Path, output, options: dict, out_dir: Path, manifest) -> Item:
     where = f"manifest {Path(manifest).name}, row {number}" if number is not None else f"{source.name}"
     files = [str(source)]
-    for name, spec in job.options.items():
+    for name, spec in accepted.items():
         value = options[name]
-        if spec.kind in ("path", "name_or_path") and isinstance(value, str) and value not in spec.choices:
+        if spec.kind in ("path", "name_or_path") and isinstance(value, str) and value not in spec.names:
             options[name] = value = resolve_template(value, source) if "{" in value else value
             files.append(value)
-    for group in job.required:
-        if all(options[name] is None for name in group):
-            wanted = " or ".join(repr(name) for name in group)
-            raise BatchError(f"{where}: batch {kind} needs {wanted} (an option, or a column of the manifest)")
-    if kind == "rig" and options["landmarks"] is not None and options["auto_landmarks"]:
-        raise BatchError(f"{where}: give landmarks or auto_landmarks, not both")
+    group = task.missing(options)
+    if group is not None:
+        wanted = " or ".join(repr(name) for name in group)
+        raise BatchError(f"{where}: batch {kind} needs {wanted} (an option, or a column of the manifest)")
+    try:
+        chosen = task.options(**{name: value for name, value in options.items() if name != FORMAT})
+    except TaskError as error:
+        raise BatchError(f"{where}: {error}") from None
     if output is None:
-        suffix = "." + options["format"] if "format" in options else job.formats[0]
+        suffix = "." + options[FORMAT] if FORMAT in options else task.outputs[0]
         main = out_dir / (source.stem + suffix)
     else:
         main = (out_dir / output).resolve()
         if not main.is_relative_to(out_dir):
             raise BatchError(f"{where}: output {output!r} is outside the output folder {out_dir}")
-        if main.suffix.lower() not in job.formats:
-            raise BatchError(f"{where}: output {output!r}: batch {kind} writes {', '.join(job.formats)}")
-        if "format" in options:
-            options["format"] = main.suffix.lower()[1:]
-    stem = main.with_suffix("")
-    outputs = (str(main), *(str(stem.with_name(stem.name + s)) for s in job.extra(options)))
+        if main.suffix.lower() not in task.outputs:
+            raise BatchError(f"{where}: output {output!r}: batch {kind} writes {', '.join(task.outputs)}")
+        if FORMAT in options:
+            options[FORMAT] = main.suffix.lower()[1:]
+    outputs = tuple(str(p) for p in task.files(main, chosen))
     relative = tuple(Path(o).relative_to(out_dir).as_posix() for o in outputs)  # OUTDIR may move
     key = item_key(kind, str(source), relative, options, files)
-    name = stem.relative_to(out_dir).as_posix()
+    name = main.with_suffix("").relative_to(out_dir).as_posix()
     return Item(kind, name, str(source), outputs, options, str(out_dir), key, number)
 
 

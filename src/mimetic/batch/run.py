@@ -112,7 +112,18 @@ def run_batch(
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
     items = collect_items(kind, paths, out, manifest=manifest, options=options)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
+    try:
+        return _run(kind, items, out, start, client, workers, retries, resume, progress, on_result)
+    except BaseException:  # unreachable scheduler, Ctrl-C before anything ran: leave no empty folder
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
+
+
+def _run(kind, items, out, start, client, workers, retries, resume, progress, on_result) -> Manifest:
+    """``run_batch`` once its items are collected and ``out`` exists."""
     rows: dict[str, Row] = {}
     todo = []
     for item in items:
@@ -127,8 +138,6 @@ def run_batch(
     executor = "nothing to run"
     if todo:
         finished = 0
-        if progress is not None:
-            progress(0, len(todo))
 
         def done(item: Item, outcome: Outcome) -> None:
             nonlocal finished
@@ -146,6 +155,8 @@ def run_batch(
 
         with _runner(client, workers, len(todo)) as runner:
             executor = runner.name
+            if progress is not None:  # the cluster is up: the items start
+                progress(0, len(todo))
             runner.run(todo, retries, done)
     ordered = tuple(rows[i.name] for i in items)
     result = Manifest(kind, out.resolve(), ordered, time.perf_counter() - start, executor)
@@ -226,6 +237,10 @@ def capture_many(rig, takes, out_dir, *, client=None, workers=None, retries=0, r
 # --------------------------------------------------------------------------- executors
 
 
+SCHEDULER_TIMEOUT_S = 5
+"""How long to wait for a ``--scheduler`` to answer before giving up (Dask's own default is 30 s)."""
+
+
 def usable_cores() -> int:
     """The cores this process may run on."""
     try:
@@ -260,14 +275,18 @@ def _runner(client: Any, workers: int | None, n_items: int) -> Iterator[_DaskRun
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
-                silence_logs=logging.ERROR,
+                silence_logs=logging.CRITICAL,  # workers log a run's end as errors; items report theirs
                 env=WORKER_THREADS,
+                preload=["mimetic.batch.jobs"],  # its dask_setup: the workers leave Ctrl-C to us
             )
         try:
             with distributed.Client(cluster) as local:
                 yield _DaskRunner(local, "dask LocalCluster")
         finally:
-            cluster.close()
+            try:
+                cluster.close()
+            except TimeoutError:  # a worker slow to exit on a loaded machine: its nanny killed it
+                log.info("the local Dask cluster took too long to close; its workers were stopped")
     elif isinstance(client, (str, os.PathLike)):
         distributed = _distributed()
         if distributed is None:
@@ -276,10 +295,11 @@ def _runner(client: Any, workers: int | None, n_items: int) -> Iterator[_DaskRun
                 f"{install_hint('batch')}"
             )
         try:
-            remote = distributed.Client(os.fspath(client))
+            remote = distributed.Client(os.fspath(client), timeout=f"{SCHEDULER_TIMEOUT_S}s")
         except (OSError, TimeoutError) as error:
+            reason = " ".join(str(error).split()) or f"no answer within {SCHEDULER_TIMEOUT_S} s"
             raise BatchError(
-                f"cannot reach the Dask scheduler at {os.fspath(client)} ({error}); is `dask scheduler` "
+                f"cannot reach the Dask scheduler at {os.fspath(client)} ({reason}); is `dask scheduler` "
                 "running there, and its port open to this machine?"
             ) from None
         with remote:

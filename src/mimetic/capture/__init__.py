@@ -13,35 +13,53 @@
 * ``LiveSolver`` / ``LiveCapture`` / ``live_frames`` solve a stream frame by frame, as it arrives.
 * ``solve_activations`` fits activations to whole-mesh vertex targets (the vertex-level solver,
   with correctives).
+
+Each name is imported from its module on first use, so that the task layer and the command line can
+read this package's constants (layouts, units, the cutoff) without loading the solvers and numba.
 """
 
-from mimetic.capture.formats import read_trajectories, write_trajectories
-from mimetic.capture.markers import MarkerSet, load_marker_set, marker_set, save_marker_set
-from mimetic.capture.performance import Performance, solve_performance
-from mimetic.capture.retarget import keep_edits, retarget
-from mimetic.capture.solve import ActivationSolver, SolveResult, prepare_solver, solve_activations
-from mimetic.capture.stream import LiveCapture, LiveFrame, LiveSolver, live_frames
-from mimetic.capture.trajectories import CaptureError, Trajectories
+from __future__ import annotations
 
-__all__ = [
-    "ActivationSolver",
-    "CaptureError",
-    "LiveCapture",
-    "LiveFrame",
-    "LiveSolver",
-    "MarkerSet",
-    "Performance",
-    "SolveResult",
-    "Trajectories",
-    "keep_edits",
-    "live_frames",
-    "load_marker_set",
-    "marker_set",
-    "prepare_solver",
-    "read_trajectories",
-    "retarget",
-    "save_marker_set",
-    "solve_activations",
-    "solve_performance",
-    "write_trajectories",
-]
+import importlib
+from typing import Any
+
+# eager: the function shares its module's name, which importing the module would otherwise bind here
+from mimetic.capture.retarget import keep_edits as keep_edits
+from mimetic.capture.retarget import retarget as retarget
+
+_API = {
+    "read_trajectories": "formats",
+    "write_trajectories": "formats",
+    "MarkerSet": "markers",
+    "load_marker_set": "markers",
+    "marker_set": "markers",
+    "save_marker_set": "markers",
+    "Performance": "performance",
+    "solve_performance": "performance",
+    "ActivationSolver": "solve",
+    "SolveResult": "solve",
+    "prepare_solver": "solve",
+    "solve_activations": "solve",
+    "LiveCapture": "stream",
+    "LiveFrame": "stream",
+    "LiveSolver": "stream",
+    "live_frames": "stream",
+    "CaptureError": "trajectories",
+    "Trajectories": "trajectories",
+}
+
+__all__ = sorted([*_API, "keep_edits", "retarget"])
+
+
+def __getattr__(name: str) -> Any:
+    """This package's names, each imported from its module on first use."""
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'mimetic.capture' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"mimetic.capture.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))

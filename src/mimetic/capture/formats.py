@@ -43,6 +43,8 @@
 Frame rate: the file's, unless ``fps`` is passed; when both are known and differ by more than
 1 %, ``fps`` is used and a ``MimeticWarning`` names both. Units: the file's; ``units`` gives them
 for a file that does not say, and must agree with a file that does.
+
+Over 600 lines because its four readers share one check of names, units, frame rates and gaps.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ import numpy as np
 from mimetic.atomic import atomic_write
 from mimetic.capture.trajectories import LENGTH_UNITS, CaptureError, Trajectories
 from mimetic.errors import MimeticWarning
-from mimetic.mesh.io import read_input
+from mimetic.inputs import decode_text, read_input
 
 log = logging.getLogger(__name__)
 
@@ -179,10 +181,11 @@ def _read_bytes(path: Path, src: str) -> bytes:
 
 
 def _decode(data: bytes, src: str) -> str:
+    """The file's text in any encoding ``mimetic.inputs.decode_text`` reads."""
     try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise _unknown_format(src, "binary, not text, and not C3D") from None
+        return decode_text(data, src, CaptureError)
+    except CaptureError as error:
+        raise CaptureError(f"{error}; and it is not C3D. Known formats: {_KNOWN_FORMATS}.") from None
 
 
 def _unknown_format(src: str, what: str = "not a known trajectory format") -> CaptureError:

@@ -39,6 +39,7 @@ import scipy.sparse as sp
 from mimetic.atomic import atomic_write
 from mimetic.capture.trajectories import CaptureError
 from mimetic.head.landmarks import IBUG68
+from mimetic.inputs import read_text
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import SurfacePoint
@@ -295,10 +296,8 @@ def load_marker_set(path: str | os.PathLike[str], rig: Rig) -> MarkerSet:
     """A marker set from a JSON file (see the module docstring), placed on ``rig``."""
     path = Path(path)
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CaptureError(f"{path}: no such marker file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        document = json.loads(read_text(path, CaptureError, "marker"))
+    except json.JSONDecodeError as error:
         raise CaptureError(f"{path}: not a JSON marker file ({error})") from None
     if not isinstance(document, dict) or not isinstance(document.get("markers"), dict):
         raise CaptureError(f'{path}: expected {{"units": "cm", "markers": {{"name": [x, y, z], ...}}}}')

@@ -52,7 +52,7 @@ from mimetic.capture.expression import (
 )
 from mimetic.capture.head import HeadMotion, head_motion, head_weights
 from mimetic.capture.markers import MarkerSet, layout_for, marker_set
-from mimetic.capture.smooth import CHI_MEDIAN, smooth_points
+from mimetic.capture.smooth import CHI_MEDIAN, CUTOFF_HZ, smooth_points
 from mimetic.capture.solve import channel_bounds
 from mimetic.capture.trajectories import CaptureError, Trajectories
 from mimetic.engines.basis import Basis
@@ -65,8 +65,6 @@ log = logging.getLogger(__name__)
 Progress = Callable[[str, int, int], None]
 
 HEAD_CHANNELS = ("head_yaw", "head_pitch", "head_roll")
-CUTOFF_HZ = 8.0
-"""Default smoothing cutoff: facial motion (speech included) lives below ~8 Hz, tracker jitter above."""
 SHAPE_MOTION_REL = 0.008
 """τ of the shape prior (``capture.expression``), as a fraction of the head's size: how far a skin
 coordinate typically moves in an expression. The prior's weight is ν = (σ_e / τ)², σ_e what the

@@ -1,7 +1,7 @@
 """Retargeting and editing solved performances (the paper's §4).
 
 Retargeting is by channel name: the same activation curves drive any rigged head, each through its
-own muscles (``retarget``). Editing uses the clip layers of ``mimetic.animate.clip``: a solved clip
+own muscles (``retarget``). Editing uses the clip layers of ``mimetic.animate.keyframes``: a solved clip
 becomes the base layer of a ``KeyframeClip`` (``from_clip``), B-spline displacement edits go in
 additive layers (``KeyframeClip.edit``, the paper's expression displacement mapping), and after a
 re-solve ``keep_edits`` swaps in the new base under the same edits.
@@ -13,7 +13,7 @@ import warnings
 
 import numpy as np
 
-from mimetic.animate.clip import KeyframeClip, from_clip
+from mimetic.animate.keyframes import KeyframeClip, from_clip
 from mimetic.errors import MimeticWarning
 from mimetic.rig.activations import Clip
 from mimetic.rig.model import Rig

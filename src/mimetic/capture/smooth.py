@@ -35,6 +35,8 @@ SIGMA_FLOOR_REL = 0.002
 least the capture's noise: clean data has a median residual near 0, and a smooth motion's onset
 must not count as a spike."""
 ROBUST_ROUNDS = 3
+CUTOFF_HZ = 8.0
+"""Default smoothing cutoff: facial motion (speech included) lives below ~8 Hz, tracker jitter above."""
 NOISE_CUTOFF_HZ = 8.0
 """The cutoff at which the noise is measured (and spikes found) when the points are not smoothed."""
 CHI_MEDIAN = {1: 0.6745, 2: 1.1774, 3: 1.5382}

@@ -27,6 +27,8 @@ vertices, not from G, so it is exact.
 
 Channels that move nothing on S (head rotation, which a basis cannot represent, or eyelids when
 the eyes are left out) and channels left out of ``active`` are held at 0, the basis's rest.
+
+Over 600 lines because the solver's prepared factorisations belong with the maths they implement.
 """
 
 from __future__ import annotations

@@ -20,6 +20,9 @@ then 2 x 5 iris points), d = 3, in pixels of the video's frame as a player shows
 across views), so tracked points can be matched with the rig's surface.
 
 Both need the optional extra ``mimetic[track]`` (mediapipe), imported on first use.
+
+Over 600 lines because decoding, tracking and placing the landmarks on the rig are one chain that
+shares the frames' timing and size.
 """
 
 from __future__ import annotations

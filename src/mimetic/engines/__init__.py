@@ -30,12 +30,13 @@ class Engine(Protocol):
     def deform(self, values: np.ndarray) -> np.ndarray: ...
 
 
-def make_engine(rig: Rig, name: str = "wire", **options) -> Engine:
+def make_engine(rig: Rig, name: str = "wire", *, progress=None, **options) -> Engine:
     """Prepare the named engine for a rig (options: ``skull``, ``creases``).
 
     Engines work from vertex positions and the rig's precomputed anatomy (``Rig.anatomy``), which
     is derived across unwelded seams, so coincident copies of a vertex (a UV seam, an unwelded
-    patch) move together in every pose.
+    patch) move together in every pose. ``progress(done, total)`` hears the preparation's stages of
+    the engines that take seconds to prepare (fem, tissue); wire and vector are ready at once.
     """
     if name == "wire":
         from mimetic.engines.wire import WireEngine
@@ -48,11 +49,11 @@ def make_engine(rig: Rig, name: str = "wire", **options) -> Engine:
     if name == "fem":
         from mimetic.engines.fem import FemEngine
 
-        return FemEngine(rig, **options)
+        return FemEngine(rig, progress=progress, **options)
     if name == "tissue":
         from mimetic.engines.tissue import TissueEngine
 
-        return TissueEngine(rig, **options)
+        return TissueEngine(rig, progress=progress, **options)
     from mimetic.errors import MimeticError
 
     raise MimeticError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")

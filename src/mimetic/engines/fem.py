@@ -188,14 +188,19 @@ class FemEngine:
 
     name = "fem"
 
-    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
+    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True, progress=None) -> None:
+        report = progress or (lambda done, total: None)  # (done, total) of the 3 stages below
         self.rig = rig
         self.channels = rig.channel_names
+        report(0, 3)
         self.volume = build_volume(rig)
+        report(1, 3)
         self.solver = prepare_fem(self.volume)
+        report(2, 3)
         self.deltas = fem_deltas(rig, self.volume, self.solver)  # (c, n, 3)
         self._flat = self.deltas.reshape(len(self.channels), -1).T  # (3n, c)
         self.chain = Chain(rig, skull=skull, creases=creases)
+        report(3, 3)
 
     def deform(self, values: np.ndarray) -> np.ndarray:
         """Vertex positions (n, 3) for one pose ``values`` (c,) in the rig's channel order."""

@@ -11,7 +11,7 @@ Frames are numbered from 1, with at least four digits.
 
 The faces, groups and colours are the same in every frame, so they are encoded once; each frame
 formats only its positions (about 70 ms a frame for the 13k-vertex default head). For the channel curves
-as CSV (``time_s`` plus one column per channel) use ``mimetic.animate.clip.save_csv``.
+as CSV (``time_s`` plus one column per channel) use ``mimetic.animate.clipfiles.save_csv``.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ word alignment of the transcript (optional pauses between words), then a phone a
 it, on a 10 ms frame grid (at least 30 ms a phone). The settings are those of pocketsphinx's own
 ``align`` command (no language model, no best-path rescoring), which made the shared data's
 LibriVox reference alignments. Words missing from pocketsphinx's dictionary are added with the
-phones of ``mimetic.speech.phonemes``; stress digits are taken from the CMU dictionary
+phones of ``mimetic.speech.english``; stress digits are taken from the CMU dictionary
 pronunciation that matches the aligned phones.
 
 Northern Sotho: no acoustic model exists, so each phone is aligned as its nearest English phones
@@ -32,7 +32,7 @@ import numpy as np
 from mimetic.atomic import atomic_path
 from mimetic.errors import MissingExtraError, SpeechError, install_hint
 from mimetic.speech import nso
-from mimetic.speech.phonemes import cmu_pronunciations, text_to_phonemes
+from mimetic.speech.english import cmu_pronunciations, text_to_phonemes
 from mimetic.speech.phones import LANGUAGES, PhoneTimings, WordPhones
 from mimetic.speech.timings import timings_from_words
 

@@ -80,7 +80,7 @@ class PhoneTimings:
 
 
 PAUSE_MARKS = ".!?…,;:—–()"
-"""Punctuation read as a pause between words (``mimetic.speech.phonemes``, ``mimetic.speech.nso``)."""
+"""Punctuation read as a pause between words (``mimetic.speech.english``, ``mimetic.speech.nso``)."""
 SENTENCE_MARKS = ".!?…"
 """The pause marks that end a sentence (a longer pause in naive timing)."""
 

@@ -30,6 +30,7 @@ import json
 import logging
 import math
 import re
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -37,8 +38,9 @@ import numpy as np
 
 from mimetic.atomic import atomic_path, atomic_write
 from mimetic.errors import SpeechError
+from mimetic.inputs import read_text
 from mimetic.speech import nso
-from mimetic.speech.phonemes import ARPABET, ARPABET_VOWELS, parse_arpabet, text_to_phonemes
+from mimetic.speech.english import ARPABET, ARPABET_VOWELS, parse_arpabet, text_to_phonemes
 from mimetic.speech.phones import (
     LANGUAGES,
     OVERLAP_TOLERANCE_S,
@@ -210,8 +212,13 @@ def _read_textgrid(path: Path, language: str) -> PhoneTimings:
     from praatio import textgrid
     from praatio.utilities.errors import PraatioException
 
+    text = read_text(path, SpeechError, "TextGrid")
     try:
-        grid = textgrid.openTextgrid(str(path), includeEmptyIntervals=True, reportingMode="silence")
+        with tempfile.TemporaryDirectory(prefix="mimetic-textgrid-") as folder:
+            # praatio reads UTF-16 or else UTF-8 only: hand it the text in the encoding it tries first
+            copy = Path(folder) / "grid.TextGrid"
+            copy.write_text(text, encoding="utf-16")
+            grid = textgrid.openTextgrid(str(copy), includeEmptyIntervals=True, reportingMode="silence")
     except (PraatioException, ValueError, IndexError, KeyError, UnicodeError) as error:
         reason = str(error) or type(error).__name__
         raise SpeechError(
@@ -355,10 +362,7 @@ def load_timings(path: str | Path, *, language: str = "en") -> PhoneTimings:
     suffix = path.suffix.lower()
     if suffix == ".textgrid":
         return _read_textgrid(path, language)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise SpeechError(f"{path}: not UTF-8 text; CSV and JSON timing files must be UTF-8") from None
+    text = read_text(path, SpeechError, "timing")
     head = text.lstrip()
     if suffix == ".json" or (suffix != ".csv" and head[:1] in ("[", "{")):
         return _read_json(path, text, language)

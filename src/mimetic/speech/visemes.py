@@ -47,6 +47,7 @@ from types import MappingProxyType
 import numpy as np
 
 from mimetic.errors import SpeechError
+from mimetic.inputs import read_text
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Channel, Rig
 from mimetic.speech.phones import LANGUAGES, SILENCE
@@ -303,10 +304,8 @@ def load_viseme_map(
     else:
         path = Path(source)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except OSError as error:
-            raise SpeechError(f"cannot read viseme map {path}: {error.strerror or error}") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as error:
+            data = json.loads(read_text(path, SpeechError, "viseme map"))
+        except json.JSONDecodeError as error:
             raise SpeechError(f"{path.name}: not valid JSON ({error})") from None
         vmap = _parse(data, path.name, path.stem)
     if channels is not None:

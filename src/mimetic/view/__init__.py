@@ -16,7 +16,14 @@ from mimetic.render import (
     rasterize,
     render,
 )
-from mimetic.view.sheet import contact_sheet, draw_lines, draw_points, overlay_segments, save_image, save_png
+from mimetic.view.drawing import (
+    contact_sheet,
+    draw_lines,
+    draw_points,
+    overlay_segments,
+    save_image,
+    save_png,
+)
 
 __all__ = [
     "VIEWS",

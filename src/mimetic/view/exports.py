@@ -1,43 +1,56 @@
-"""The web viewer's downloads as bytes: an animated GLB of the rig and a PNG of what it shows."""
+"""The web viewer's downloads, made by the same tasks as the command line (``mimetic.tasks``).
+
+The GLB is ``mimetic export`` (no clip on the timeline) or ``mimetic animate`` (the timeline's clip
+sampled at ``session.FPS``) of the viewer's rig and engine; the PNG is ``mimetic pose`` of what the
+page shows, a front close-up posed by the viewer's own prepared engine. Each is written into a
+temporary folder (removed afterwards) and handed to the browser as bytes.
+"""
 
 from __future__ import annotations
 
-import io
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from mimetic.animate.clip import KeyframeClip
-from mimetic.rig.model import Rig
+from mimetic.animate.keyframes import KeyframeClip
 from mimetic.view.session import FPS
 
 PNG_SIZE = 768
 
 
-def glb_bytes(rig: Rig, engine: str, clip: KeyframeClip | None = None) -> bytes:
-    """The rig as a GLB with one morph target per muscle (``engine`` baked) and, when given, ``clip``
-    sampled at ``FPS`` as its animation: what ``mimetic export`` / ``mimetic animate -o .glb`` write."""
-    from mimetic.export.gltf import export_glb, morph_targets
+def glb_bytes(rig_file: Path, engine: str, clip: KeyframeClip | None = None) -> bytes:
+    """The rig file as a GLB with one morph target per muscle (``engine`` baked) and, when given,
+    ``clip`` sampled at ``FPS`` as its animation: what ``mimetic export`` / ``mimetic animate`` write."""
+    from mimetic.animate.clipfiles import save_clip
+    from mimetic.tasks import animate, export
 
-    sampled = None if clip is None else clip.sample(FPS, channels=rig)
-    with tempfile.TemporaryDirectory() as folder:
-        path = export_glb(
-            rig, Path(folder) / "head.glb", morph_targets=morph_targets(rig, engine), clip=sampled
-        )
-        return path.read_bytes()
+    with tempfile.TemporaryDirectory(prefix="mimetic-view-") as folder:
+        out = Path(folder) / "head.glb"
+        if clip is None:
+            export.run(rig_file, out, export.ExportOptions(engine=engine))
+        else:
+            clip_file = save_clip(clip, Path(folder) / "clip.json")
+            animate.run(rig_file, out, animate.AnimateOptions(clip=clip_file, fps=FPS, engine=engine))
+        return out.read_bytes()
 
 
-def png_bytes(rig: Rig, vertices: np.ndarray, size: int = PNG_SIZE) -> bytes:
-    """A front close-up (size × size) of the rig's mesh at ``vertices`` (n, 3), rig units, as PNG."""
-    from PIL import Image
+def png_bytes(
+    rig_file: Path,
+    engine: str,
+    pose: np.ndarray,
+    channels: tuple[str, ...],
+    deform: Callable[[np.ndarray], np.ndarray],
+    size: int = PNG_SIZE,
+) -> bytes:
+    """``mimetic pose`` of ``pose`` (c,) over ``channels`` as a front close-up PNG (size × size), posed
+    by ``deform`` (the viewer's prepared engine: pose → vertices (n, 3))."""
+    from mimetic.tasks import pose as pose_task
 
-    from mimetic.render.renderer import default_renderer
-    from mimetic.view.look import rig_look
-    from mimetic.view.sheets import face_camera
-
-    mesh = rig.mesh.with_vertices(np.asarray(vertices, dtype=np.float64))
-    image = default_renderer().render(mesh, face_camera(rig), size=(size, size), look=rig_look(rig))
-    buffer = io.BytesIO()
-    Image.fromarray(image).save(buffer, format="PNG")
-    return buffer.getvalue()
+    values = tuple(zip(channels, (float(v) for v in pose), strict=True))
+    options = pose_task.PoseOptions(values=values, engine=engine, view="front", size=size)
+    with tempfile.TemporaryDirectory(prefix="mimetic-view-") as folder:
+        out = Path(folder) / "pose.png"
+        pose_task.run(rig_file, out, options, deform=lambda _: np.asarray(deform(pose), dtype=np.float64))
+        return out.read_bytes()

@@ -15,7 +15,7 @@ from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh
 from mimetic.render.camera import frame_camera, project
 from mimetic.render.renderer import Renderer, default_renderer
-from mimetic.view.sheet import contact_sheet, draw_points
+from mimetic.view.drawing import contact_sheet, draw_points
 
 RESIDUAL_RED_PCT = 1.0
 _STOPS = np.array([[0.15, 0.35, 0.85], [0.95, 0.85, 0.25], [0.85, 0.15, 0.12]], dtype=np.float32)

@@ -7,8 +7,8 @@ import numpy as np
 from mimetic.render.camera import VIEWS, Camera, frame_camera, project
 from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.model import Rig
+from mimetic.view.drawing import draw_lines, overlay_segments
 from mimetic.view.look import rig_look
-from mimetic.view.sheet import draw_lines, overlay_segments
 
 KIND_COLORS = {"linear": (0.95, 0.25, 0.2), "sphincter": (1.0, 0.85, 0.2), "sheet": (0.2, 0.8, 0.95)}
 

@@ -15,6 +15,9 @@ keys a user sets (or a loaded clip, which key edits then reshape with the B-spli
 itself when that is interactive, else by its baked basis. ``pick`` intersects a click's ray with
 the mesh, for landmark picking. ``LivePlayback`` plays a video (or camera) on the rig as it arrives,
 solved frame by frame by ``capture.stream.live_frames``.
+
+Over 600 lines because it is the whole viewer's state (layers, timeline, engines, picks, live
+playback) kept out of the browser, so that tests drive it directly.
 """
 
 from __future__ import annotations
@@ -34,14 +37,16 @@ from pathlib import Path
 import numpy as np
 
 from mimetic.animate.arkit import arkit_table, arkit_values
-from mimetic.animate.clip import KeyframeClip, from_poses, save_clip
+from mimetic.animate.clipfiles import save_clip
 from mimetic.animate.controls import descriptive_controls
 from mimetic.animate.expressions import ExpressionLibrary, expression_pose, load_library
 from mimetic.animate.facs import action_units, au_values
+from mimetic.animate.keyframes import KeyframeClip, from_poses
 from mimetic.engines import ENGINES, make_engine
 from mimetic.engines.bake import bake, evaluate_rigid
 from mimetic.errors import MimeticError, MissingExtraError, install_hint
 from mimetic.rig.model import Rig
+from mimetic.tasks.prepared import Prepared
 
 log = logging.getLogger(__name__)
 
@@ -260,10 +265,15 @@ class Timeline:
 
 
 class Deformers:
-    """Each engine prepared once; ``vertices(engine, pose)`` (n, 3) float32 in rig units."""
+    """Each engine prepared once; ``vertices(engine, pose)`` (n, 3) float32 in rig units.
 
-    def __init__(self, rig: Rig, engines: tuple[str, ...] = ENGINES) -> None:
-        self.rig = rig
+    ``source`` is a rig, or a ``tasks.prepared.Prepared`` rig whose engines and bakes the viewer's
+    downloads (the same tasks as the command line) then share.
+    """
+
+    def __init__(self, source: Rig | Prepared, engines: tuple[str, ...] = ENGINES) -> None:
+        self.prepared = source if isinstance(source, Prepared) else Prepared(source)
+        self.rig = self.prepared.rig
         self.engines = engines
         self._ready: dict[str, Callable[[np.ndarray], np.ndarray]] = {}
         self._lock = threading.Lock()
@@ -273,15 +283,16 @@ class Deformers:
 
     def prepare(self, name: str, progress: Callable[[int, int], None] | None = None) -> None:
         """Build engine ``name`` (and bake it when it is posed by its basis): instant for wire and
-        vector, about 10 s for fem, 30–100 s for tissue (benchmarks/bench_view.py)."""
+        vector, 10–35 s for fem, 30–165 s for tissue (benchmarks/bench_view.py); ``progress(done,
+        total)`` hears the preparation's stages, then the bake's poses."""
         if name not in self.engines:
             raise KeyError(f"unknown engine {name!r}; choose one of {', '.join(self.engines)}")
         with self._lock:
             if name in self._ready:
                 return
-            engine = make_engine(self.rig, name)
+            engine = self.prepared.engine(name, progress)
             if name in BAKED_ENGINES:
-                basis = bake(engine, progress=progress).basis
+                basis = self.prepared.basis(name, progress)
 
                 def deform(pose: np.ndarray) -> np.ndarray:
                     return evaluate_rigid(self.rig, basis, pose, dtype=np.float32)

@@ -26,8 +26,8 @@ from mimetic.render.renderer import Renderer, default_renderer
 from mimetic.rig.activations import pose
 from mimetic.rig.anatomy.actions import CHANNELS as TISSUE_CHANNELS
 from mimetic.rig.model import Rig
+from mimetic.view.drawing import contact_sheet
 from mimetic.view.look import rig_look
-from mimetic.view.sheet import contact_sheet
 
 log = logging.getLogger(__name__)
 
@@ -254,11 +254,19 @@ def render_pose(
 ) -> np.ndarray:
     """A face close-up (size, size, 3) uint8 of a pose (c,); ``view="all"`` gives a labelled sheet
     of the front, three-quarter and profile views side by side."""
+    vertices = posed_mesh(rig, engine, values).vertices
+    return render_posed(rig, vertices, view=view, size=size, renderer=renderer)
+
+
+def render_posed(
+    rig: Rig, vertices: np.ndarray, *, view: str = "front", size: int = 512, renderer: Renderer | None = None
+) -> np.ndarray:
+    """``render_pose`` of the rig's mesh already posed: ``vertices`` (n, 3) in rig units."""
     views = list(VIEWS) if view == "all" else [view]
     if any(v not in VIEWS for v in views):
         raise ValueError(f"unknown view {view!r}; choose all or one of {', '.join(VIEWS)}")
     renderer = renderer or default_renderer()
-    mesh = posed_mesh(rig, engine, values)
+    mesh = rig.mesh.with_vertices(np.asarray(vertices, dtype=np.float64))
     look = rig_look(rig)
     tiles = [
         (

@@ -185,7 +185,15 @@ def render_clip(
     prepared = (
         None if basis is not None else (make_engine(rig, engine) if isinstance(engine, str) else engine)
     )
-    simulated = prepared.simulate(values, clip.fps) if hasattr(prepared, "simulate") else None
+    simulates = hasattr(prepared, "simulate")
+    total = 2 * len(values) if simulates else len(values)  # a simulation's frames, then the renders
+
+    def simulating(done: int, _: int) -> None:
+        if progress is not None:
+            progress(done, total)
+
+    simulated = prepared.simulate(values, clip.fps, progress=simulating) if simulates else None
+    done = total - len(values)
 
     def frames():
         for k, pose in enumerate(values):
@@ -197,6 +205,6 @@ def render_clip(
                 vertices = prepared.deform(pose)
             yield renderer.render(rig.mesh.with_vertices(vertices), camera, size=(size, size), look=look)
             if progress is not None:
-                progress(k + 1, len(values))
+                progress(done + k + 1, total)
 
     return write_mp4(frames(), path, fps=clip.fps, size=(size, size), audio=audio)

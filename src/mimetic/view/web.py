@@ -13,6 +13,9 @@ Why viser: its browser client is one bundled file that works offline, and a vert
 the browser in ~19 ms (../shared/research §D); gradio needs the network and resends whole meshes,
 trame syncs JSON lists. The server binds 127.0.0.1 unless told otherwise; a port in use is an error
 (viser itself would quietly take the next one).
+
+Over 600 lines because the page is one viser app: its tabs share the rig, the session and the
+client handles.
 """
 
 from __future__ import annotations
@@ -254,18 +257,19 @@ class Viewer:
 
     def _load(self) -> None:
         from mimetic.mesh.io import load_mesh
-        from mimetic.rig.format import load_rig
+        from mimetic.tasks.prepared import prepared_rig
         from mimetic.view.session import Deformers, Picks, Session, Timeline
 
         if self.source.suffix.lower() in MESH_SUFFIXES:
             self.rig = None
             self.mesh = load_mesh(self.source)
         else:
-            self.rig = load_rig(self.source)
+            prepared = prepared_rig(self.source)  # the rig the downloads' tasks load: one bake each
+            self.rig = prepared.rig
             self.mesh = self.rig.mesh
             self.session = Session(self.rig)
             self.timeline = Timeline(self.session)
-            self.deformers = Deformers(self.rig)
+            self.deformers = Deformers(prepared)
             if self.engine not in self.deformers.engines:
                 raise MimeticError(f"unknown engine {self.engine!r}; choose one of {self.deformers.engines}")
             self.deformers.prepare(self.engine)
@@ -706,7 +710,7 @@ class Viewer:
     def _load_clip(self, data: bytes, audio: Path | None = None) -> None:
         import tempfile
 
-        from mimetic.animate.clip import load_clip
+        from mimetic.animate.clipfiles import load_clip
 
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / "clip.json"
@@ -879,12 +883,19 @@ class Viewer:
     def _export_glb(self) -> tuple[str, bytes]:
         from mimetic.view.exports import glb_bytes
 
-        return f"{self.source.stem}.glb", glb_bytes(self.rig, self.engine, self.timeline.clip())
+        return f"{self.source.stem}.glb", glb_bytes(self.source, self.engine, self.timeline.clip())
 
     def _export_png(self) -> tuple[str, bytes]:
         from mimetic.view.exports import png_bytes
 
-        return f"{self.source.stem}.png", png_bytes(self.rig, self.vertices)
+        data = png_bytes(
+            self.source,
+            self.engine,
+            self.pose,
+            self.rig.channel_names,
+            lambda pose: self.deformers.vertices(self.engine, pose),
+        )
+        return f"{self.source.stem}.png", data
 
     def _export_clip(self) -> tuple[str, bytes]:
         return f"{self.source.stem}.clip.json", self.timeline.clip_json()

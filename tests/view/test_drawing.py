@@ -1,4 +1,4 @@
-"""Tests for mimetic.view.sheet: 2D drawing, 3D segment overlays, contact sheets, PNG saving."""
+"""Tests for mimetic.view.drawing: 2D drawing, 3D segment overlays, contact sheets, PNG saving."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Tests for mimetic.speech.phonemes: English text → ARPAbet (CMU dictionary, numbers, gruut)."""
+"""Tests for mimetic.speech.english: English text → ARPAbet (CMU dictionary, numbers, gruut)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import pytest
 
 from mimetic.errors import SpeechError
-from mimetic.speech.phonemes import (
+from mimetic.speech.english import (
     ARPABET,
     ARPABET_VOWELS,
     IPA_TO_ARPABET,

@@ -115,7 +115,7 @@ def ipa_to_arpabet(phonemes: Sequence[str]) -> Pronunciation:
                 pending, symbol = digit, symbol.replace(mark, "")
         if symbol not in IPA_TO_ARPABET:
             raise SpeechError(
-                f"no ARPAbet phone for the IPA phoneme {phoneme!r}; add it to mimetic.speech.phonemes."
+                f"no ARPAbet phone for the IPA phoneme {phoneme!r}; add it to mimetic.speech.english."
                 f"IPA_TO_ARPABET (known: {' '.join(IPA_TO_ARPABET)})"
             )
         label = IPA_TO_ARPABET[symbol]
