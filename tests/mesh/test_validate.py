@@ -292,3 +292,15 @@ print(soup.n_vertices, report.n_seam_vertices)
     n_vertices, n_seam = map(int, measured.stdout.split())
     assert n_vertices == 156_660 and n_seam > 100_000
     assert measured.peak_gib < 1.0
+
+
+def test_peak_rss_counts_the_child_not_the_large_caller():
+    """The caller holds 1.5 GB; the measured child allocates 0.4 GB and is measured at that (the
+    kernel's ru_maxrss would report the caller's size it forked from)."""
+    from mimetic.testing.memory import peak_rss
+
+    ballast = np.ones(200_000_000)  # 1.6 GB held by this process while the child runs
+    measured = peak_rss("import numpy as np; a = np.ones(50_000_000); print(a.sum())")
+    assert float(measured.stdout) == 50_000_000
+    assert 0.35 < measured.peak_gib < 0.8
+    del ballast
