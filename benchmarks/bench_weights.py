@@ -62,10 +62,13 @@ def jaw_motion(vertices: np.ndarray, delta: np.ndarray) -> np.ndarray:
 
 def lid_motion(
     vertices: np.ndarray, faces: np.ndarray, delta: np.ndarray, corners, centre
-) -> tuple[np.ndarray, float]:
-    """The upper lid's rotation motion (n, 3) in a captured blink ``delta`` and its angle (rad)."""
+) -> tuple[np.ndarray, float] | None:
+    """The upper lid's rotation motion (n, 3) in a captured blink ``delta`` and its angle (rad), or
+    None when the eye's opening is not found on the head."""
     skin = skin_faces(vertices, faces)
     opening = eye_opening(vertices, skin, corners, eyeball(vertices, faces, corners))
+    if opening is None:
+        return None
     upper, _ = margin_seeds(vertices, skin, opening, 0.03 * opening.width)
     p, q = vertices[upper] - centre, vertices[upper] + delta[upper] - centre
     theta = float(np.median(np.arctan2(q[:, 1], q[:, 2]) - np.arctan2(p[:, 1], p[:, 2])))
@@ -94,8 +97,12 @@ def measure(case: Case, heads: Heads, cavity_ids: np.ndarray) -> list[tuple[str,
         delta = deltas[names.index(f"eyeBlink_{side}")]
         centre = np.asarray(rig.bone(f"eye_{side}").head, dtype=np.float64)
         near = face & (np.linalg.norm(V - centre, axis=1) < EYE_REACH * np.linalg.norm(np.subtract(*corners)))
-        motion, theta = lid_motion(V, F, delta, corners, centre)
+        found = lid_motion(V, F, delta, corners, centre)
         bone = f"eyelid_upper_{side}"
+        if found is None:
+            rows.append((case.name, bone, "eye opening not found", *[""] * 5))
+            continue
+        motion, theta = found
         bones.append((bone, f"eyeBlink_{side}", motion, near, closed_angle(rig, bone) / theta))
     for bone, shape, motion, counts, scale in bones:
         truth = implied_weights(deltas[names.index(shape)], motion)
@@ -165,8 +172,8 @@ def main() -> None:
         rows,
     )
     for group in ("calibration", "check"):
-        sel = [float(r[4]) for r in rows if r[0] == group]
-        base = [float(r[5]) for r in rows if r[0] == group]
+        sel = [float(r[4]) for r in rows if r[0] == group and r[4]]
+        base = [float(r[5]) for r in rows if r[0] == group and r[5]]
         print(
             f"{group}: rig {np.mean(sel):.2f} % mean over bones and heads (no weight {np.mean(base):.2f} %)"
         )
