@@ -13,13 +13,19 @@ area (eyeballs, lashes, teeth and films are separate pieces, or are ignored with
   the eye is the piece holding most of the window's border, and the opening is the other grid
   points, the connected part of them covering the middle of the eye. Its top and bottom per column
   are the upper and lower margins.
-* **Mouth** (``mouth_opening``): closed lips meet along a valley of the depth. The valley is the
-  cheapest path across the window through the depth (a seam moving at most one row per column,
-  within ``MOUTH_BAND_REL`` of the line between the corners); it ends at the commissures, where
-  the valley's depth under both lips falls below ``VALLEY_REL`` of the mouth width. Where the lips
-  are apart the seam runs through the gap, and the gap's top and bottom are the margins.
+* **Mouth** (``mouth_opening``): closed lips meet along a narrow valley of the depth, where the
+  skin folds in between them. The seam is the cheapest path across the window (moving at most one
+  row per column, within ``MOUTH_BAND_REL`` of the line between the corners) through a cost that
+  is low in narrow valleys (the depth under the surface closed over it, a black top-hat: a broad
+  slope such as the fold under a full lower lip is no valley) and along the skin's rim seen from
+  the front; it ends at the commissures, where the valley under both lips falls below
+  ``VALLEY_REL`` of the mouth width and no rim follows it (breaks shorter than ``VALLEY_GAP_REL``
+  bridged), and never runs past the landmark corners. Where the lips are apart the seam runs
+  through the gap, and the gap's top and bottom are the margins.
 
-Both give up (``None``) rather than guess: a window without a clear opening or valley (eyes closed
+The constants below were chosen on ICT-FaceKit's neutral and identities s1-s2 at σ 1, s2-s6 at σ 2
+and s4 at σ 3 (``benchmarks/sweep_motion.py``'s calibration heads); that benchmark reports them on
+57 others. Both give up (``None``) rather than guess: a window without a clear opening or valley (eyes closed
 by faces, as on a face mask; eyeballs fused into the skin; a mouth slit closed by faces is still
 found, as a valley), or an opening far from where the corners said.
 """

@@ -96,7 +96,8 @@ BISECTIONS = 40
 LID_BAND_REL = 0.3
 """The upper lid's skin follows its margin to this distance from it along the skin, × the eye's width
 (the corners' distance; 0.9 cm on ICT's 3 cm eyes), fading from 1 at the margin (``lid_profile``).
-Calibrated on ICT's neutral (its eyeBlink shapes' implied weights)."""
+Calibrated on ICT's neutral (its eyeBlink shapes' implied weights); checked on ICT identities
+s101-s105 (``benchmarks/bench_weights.py``)."""
 
 
 @dataclass(frozen=True, eq=False)
