@@ -166,14 +166,6 @@ corner, where the lines meet and a millimetre's asymmetry in where the seam was 
 corner and not the other."""
 
 
-def _between_corners(vertices: np.ndarray, ids: np.ndarray, opening: Opening) -> np.ndarray:
-    """The margin vertices ``ids`` of ``vertices`` lying between ``opening``'s corners, ``CURVE_CORNER_REL``
-    of its width in from each (measured along the line through them)."""
-    a, b = opening.corners
-    along = (vertices[ids] - a) @ (b - a) / ((b - a) @ (b - a))
-    return ids[(along > CURVE_CORNER_REL) & (along < 1 - CURVE_CORNER_REL)]
-
-
 def fit_reference(
     mesh: Mesh,
     landmark_names: list[str],
@@ -243,7 +235,7 @@ def fit_reference(
     )
     margins = {f: m for f, m in margins.items() if f in openings and min(map(len, m)) > 0}
     curves = [
-        Curve(_between_corners(start.mesh.vertices, ids, openings[f]), line)
+        Curve(ids[openings[f].between_corners(start.mesh.vertices[ids], CURVE_CORNER_REL)], line)
         for f, m in margins.items()
         for ids, line in zip(m, (openings[f].upper, openings[f].lower), strict=True)
     ]

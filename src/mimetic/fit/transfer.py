@@ -304,9 +304,7 @@ def _sided(
         reach = SIDE_REACH[feature.split("_")[0]] * opening.width
         seeds = opening_margins(in_model, faces, {feature: opening})[feature]
         user_side = opening_sides(in_model, faces, *seeds, reach)
-        axis = opening.corners[1] - opening.corners[0]
-        along = (in_model - opening.corners[0]) @ axis / (axis @ axis)
-        user_side[(along < CORNER_FREE_REL) | (along > 1 - CORNER_FREE_REL)] = 0
+        user_side[~opening.between_corners(in_model, CORNER_FREE_REL)] = 0
         ref_side = opening_sides(mesh_ref.vertices, ref_faces, *margins[feature], reach)
         face_side = np.sign(ref_side[ref_faces].astype(np.int64).sum(axis=1))
         for side in (1, -1):

@@ -145,6 +145,13 @@ class Opening:
     def width(self) -> float:
         return float(np.linalg.norm(self.corners[1] - self.corners[0]))
 
+    def between_corners(self, points: np.ndarray, inset: float) -> np.ndarray:
+        """(k,) bool: which ``points`` (k, 3) lie between the corners, ``inset`` × the width in from
+        each, measured along the line through them."""
+        a, b = self.corners
+        along = (points - a) @ (b - a) / ((b - a) @ (b - a))
+        return (along > inset) & (along < 1 - inset)
+
 
 def skin_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """The faces (f, 3) of the largest connected piece of the mesh by area: the skin."""
