@@ -6,10 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mimetic.capture import CaptureError, Trajectories, marker_set, solve_performance
+from mimetic.capture import CaptureError, Trajectories, solve_performance
 from mimetic.capture.camera import FRONT, PinholeCamera, estimate_focal, initial_pose
-from mimetic.engines import make_engine
-from mimetic.engines.bake import bake
 from mimetic.engines.basis import evaluate_basis
 from mimetic.engines.skinning import rotation_x, rotation_y, rotation_z
 from mimetic.errors import MimeticWarning
@@ -18,16 +16,6 @@ FPS = 30.0
 SIZE = (1280, 720)
 FOV = 40.0
 HEAD = ("head_yaw", "head_pitch", "head_roll")
-
-
-@pytest.fixture(scope="module")
-def baked(rig):
-    return bake(make_engine(rig, "wire"), correctives=0, samples=2).basis
-
-
-@pytest.fixture(scope="module")
-def ibug(rig):
-    return marker_set(rig, "ibug68")
 
 
 @pytest.fixture(scope="module")

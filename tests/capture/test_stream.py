@@ -6,26 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mimetic.capture import CaptureError, marker_set
+from mimetic.capture import CaptureError
 from mimetic.capture.camera import FRONT, PinholeCamera
 from mimetic.capture.stream import LiveSolver
-from mimetic.engines import make_engine
-from mimetic.engines.bake import bake
 from mimetic.engines.basis import evaluate_basis
 from mimetic.engines.skinning import rotation_x, rotation_y
 
 FPS = 30.0
 SIZE = (1280, 720)
-
-
-@pytest.fixture(scope="module")
-def baked(rig):
-    return bake(make_engine(rig, "wire"), correctives=0, samples=2).basis
-
-
-@pytest.fixture(scope="module")
-def ibug(rig):
-    return marker_set(rig, "ibug68")
 
 
 @pytest.fixture(scope="module")
