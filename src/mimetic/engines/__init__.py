@@ -31,7 +31,7 @@ class Engine(Protocol):
 
 
 def make_engine(rig: Rig, name: str = "wire", *, progress=None, **options) -> Engine:
-    """Prepare the named engine for a rig (options: ``skull``, ``creases``).
+    """Prepare the named engine for a rig (option ``skull``: False leaves out the skull push).
 
     Engines work from vertex positions and the rig's precomputed anatomy (``Rig.anatomy``), which
     is derived across unwelded seams, so coincident copies of a vertex (a UV seam, an unwelded

@@ -6,7 +6,7 @@ pinned: ``K q = F0 + Σ aᵢ Fᵢ``. ``F0 = K q_init`` holds the neutral, so in 
 displacement field ``uᵢ``, and any expression is ``Σ aᵢ uᵢ`` (the paper's Eq. 9). The forces ``Fᵢ``
 are the muscles' loads on the fascia (``engines.loads``), each scaled so that the muscle does the
 vector engine's work on the skin without moving any skin farther than the vector engine's muscle
-does. Skin the eyelid bones hold follows the lids only (``common.muscle_mask``), and the shared
+does. Skin the eyelid bones hold follows the lids only (``muscles.muscle_mask``), and the shared
 chain (skull, creases and tissue actions, jaw and lids as bones, lid contact, accessories) runs
 after the tissue, as in every engine.
 
@@ -33,9 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from mimetic.engines.chain import Chain
 from mimetic.engines.cholesky import NestedLU, nested_lu
-from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
+from mimetic.engines.muscles import muscle_mask
 from mimetic.engines.volume import SPLIT_COUNTS, SPLITS, TissueVolume, build_volume, tet_volumes
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig
@@ -188,7 +189,7 @@ class FemEngine:
 
     name = "fem"
 
-    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True, progress=None) -> None:
+    def __init__(self, rig: Rig, *, skull: bool = True, progress=None) -> None:
         report = progress or (lambda done, total: None)  # (done, total) of the 3 stages below
         self.rig = rig
         self.channels = rig.channel_names
@@ -199,7 +200,7 @@ class FemEngine:
         report(2, 3)
         self.deltas = fem_deltas(rig, self.volume, self.solver)  # (c, n, 3)
         self._flat = self.deltas.reshape(len(self.channels), -1).T  # (3n, c)
-        self.chain = Chain(rig, skull=skull, creases=creases)
+        self.chain = Chain(rig, skull=skull)
         report(3, 3)
 
     def deform(self, values: np.ndarray) -> np.ndarray:

@@ -77,9 +77,10 @@ import numpy as np
 import scipy.sparse as sp
 from threadpoolctl import ThreadpoolController
 
+from mimetic.engines.chain import Chain
 from mimetic.engines.cholesky import Cholesky, cholesky, nested_lu
-from mimetic.engines.common import Chain, muscle_mask
 from mimetic.engines.loads import muscle_loads
+from mimetic.engines.muscles import muscle_mask
 from mimetic.engines.projections import gathered_targets, prism_targets, spring_targets
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.engines.volume import TissueVolume, build_volume, triple_products
@@ -708,7 +709,7 @@ class TissueEngine:
     """Layered mass-spring tissue (projective dynamics) plus the shared chain; prepare once.
 
     ``deform(values)`` gives the static equilibrium of one pose; ``simulate(values, fps)`` a clip
-    with inertia (the skin lags, overshoots and settles). Options: ``skull``, ``creases`` (the
+    with inertia (the skin lags, overshoots and settles). Options: ``skull`` (the
     chain's, as every engine), ``preserve_volume``, ``skull_contact`` and ``damping`` (1/s) for the
     tissue (``prepare_tissue``).
 
@@ -727,7 +728,6 @@ class TissueEngine:
         rig: Rig,
         *,
         skull: bool = True,
-        creases: bool = True,
         preserve_volume: bool = True,
         skull_contact: bool = True,
         damping: float = DAMPING_PER_S,
@@ -757,7 +757,7 @@ class TissueEngine:
         self.forces = (forces @ sp.diags(scale)).tocsc()  # (3N, a) newtons at full activation
         self.linear = linear * scale  # (3N, a) metres: the linearised response, the iteration's start
         self.mask = muscle_mask(rig)[:, None]  # (n, 1) the lids follow their bones
-        self.chain = Chain(rig, skull=skull, creases=creases)
+        self.chain = Chain(rig, skull=skull)
         self.model.factor(0.0)
         report(3, 3)
 

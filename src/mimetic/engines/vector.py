@@ -50,7 +50,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from mimetic.engines.common import Chain, deformable_vertices, muscle_frame, muscle_mask
+from mimetic.engines.chain import Chain
+from mimetic.engines.muscles import deformable_vertices, muscle_frame, muscle_mask
 from mimetic.mesh.geometry import smooth_field
 from mimetic.mesh.weld import find_weld
 from mimetic.rig.activations import check_activations
@@ -234,12 +235,12 @@ class VectorEngine:
 
     name = "vector"
 
-    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
+    def __init__(self, rig: Rig, *, skull: bool = True) -> None:
         self.rig = rig
         self.channels = rig.channel_names
         self._deltas = vector_deltas(rig)
         self._limit = SATURATION_REL * rig.scale
-        self.chain = Chain(rig, skull=skull, creases=creases)
+        self.chain = Chain(rig, skull=skull)
 
     def deform(self, values: np.ndarray) -> np.ndarray:
         """Vertex positions (n, 3) for one pose ``values`` (c,) in the rig's channel order."""

@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from mimetic.errors import MimeticError
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.weld import find_weld
-from mimetic.rig.anatomy.anatomy import SKIN_PARTS, cavity_links, skin_vertices, tissue_normals
+from mimetic.rig.anatomy.derive import SKIN_PARTS, cavity_links, skin_vertices, tissue_normals
 from mimetic.rig.model import Rig
 
 FASCIA_DEPTH = 0.4

@@ -44,7 +44,7 @@ webs between the lips in disgust; so near that joint each lip also takes the oth
 fully at the joint and not at all ``LIP_JOIN_RADIUS_REL`` of the mouth width away
 (``lip_joint``): the corners move as one and the lips part toward the middle. After the muscles
 the shared chain runs: skull push-to-surface, creases, skinning, eyelid sculptors
-(``common.Chain``).
+(``chain.Chain``).
 """
 
 from __future__ import annotations
@@ -53,7 +53,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from mimetic.engines.common import Chain, deformable_vertices, muscle_frame, muscle_mask
+from mimetic.engines.chain import Chain
+from mimetic.engines.muscles import deformable_vertices, muscle_frame, muscle_mask
 from mimetic.mesh.geometry import closest_on_polyline, vertex_adjacency
 from mimetic.mesh.weld import find_weld
 from mimetic.rig.activations import check_activations
@@ -203,7 +204,7 @@ class WireEngine:
 
     name = "wire"
 
-    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
+    def __init__(self, rig: Rig, *, skull: bool = True) -> None:
         self.rig = rig
         self.channels = rig.channel_names
         v, f = rig.mesh.vertices, rig.mesh.faces
@@ -232,7 +233,7 @@ class WireEngine:
         vals = vals / np.maximum(total[rows], 1.0) * muscle_mask(rig)[rows]  # overlapping wires blend
         spread = sp.csr_matrix((vals, (rows, cols)), shape=(rig.n_vertices, k_total))
         self.spread = sp.kron(spread, sp.identity(3), format="csr")  # (3n, 3K)
-        self.chain = Chain(rig, skull=skull, creases=creases)
+        self.chain = Chain(rig, skull=skull)
 
     def cv_motion(self, values: np.ndarray) -> np.ndarray:
         """Control-point motion (K, 3) for a pose (c,) (the module docstring, step 2)."""

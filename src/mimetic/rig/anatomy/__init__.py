@@ -27,8 +27,8 @@ fractions of the head height (``Rig.scale``), named ``_rel``.
 
 from mimetic.rig.anatomy.accessories import Accessories, find_accessories
 from mimetic.rig.anatomy.actions import Action, find_actions
-from mimetic.rig.anatomy.anatomy import Anatomy, derive_anatomy, tissue_normals
 from mimetic.rig.anatomy.creases import Crease, find_creases
+from mimetic.rig.anatomy.derive import Anatomy, derive_anatomy, tissue_normals
 from mimetic.rig.anatomy.lids import LidContact, closing_weights, find_lid_contacts
 from mimetic.rig.anatomy.lips import lip_contact
 from mimetic.rig.anatomy.skull import Skull, forehead_skull

@@ -21,7 +21,7 @@ lids):
 * **Contact** (``find_lid_contacts``, ``Rig.anatomy.lids``): per eye and layer, every upper rim
   vertex is a contact vertex and the lower margin the polyline it meets. The engines keep each
   contact vertex on or above that polyline, in the eye frame at the vertex's own ``u``
-  (``mimetic.engines.common.Chain``): the upper lid yields, the lower stays. On a rig without
+  (``mimetic.engines.chain.Chain``): the upper lid yields, the lower stays. On a rig without
   eyeballs as separate parts, the eye is the sphere through the lid regions.
 * **Closing weights** (``closing_weights``): the upper-lid bone weight of each column of the
   visible upper margin is the one whose skinning (as the engines skin, eyeball sculptor included)

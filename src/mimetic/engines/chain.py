@@ -1,4 +1,4 @@
-"""Pieces every engine shares: the deformation chain after the muscles, and muscle geometry.
+"""The deformation chain every engine runs after its muscles (``Chain``), with the lids' contact.
 
 The chain follows the automated rigging thesis (§4.3.2): muscles -> skull -> creases and tissue
 actions -> skinning -> lid contact -> eyelid sculptors, then the accessories riveted to the skin
@@ -32,13 +32,12 @@ import scipy.sparse as sp
 from scipy.interpolate import LinearNDInterpolator
 
 from mimetic.engines.attach import ride
+from mimetic.engines.muscles import LID_RIGID_WEIGHT
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.head.parts import eyeball_profile
-from mimetic.rig.anatomy.anatomy import skin_vertices
 from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, LID_THICKNESS_REL, eye_frame
 from mimetic.rig.model import Rig
 
-LID_RIGID_WEIGHT = 0.35  # eyelid bone weight from which muscles leave a vertex to the lid
 SCULPTOR_MARGIN_REL = LID_CLEARANCE_REL  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
 LID_SCULPTED_WEIGHT = 0.05
 """Vertices a lid bone weights this much or more are sculpted with the lid regions."""
@@ -50,15 +49,6 @@ LID_MAX_OPENING_RAD = 1.5
 """The most a contact turns the upper lid back (rad)."""
 LID_SOLVE_STEPS = 8
 """Steps of the Illinois false-position search for a contact's opening angle (``_least_opening``)."""
-
-
-@dataclass(frozen=True)
-class MuscleFrame:
-    """Where a muscle pulls from and to, in rig units."""
-
-    attachment: np.ndarray  # (3,) bony origin (linear, sheet) or centre (sphincter)
-    insertion: np.ndarray  # (3,)
-    length: float
 
 
 @dataclass(frozen=True)
@@ -292,57 +282,14 @@ def _upper_weight(eye: EyeContact, ids: np.ndarray) -> np.ndarray:
     return np.where(hit, eye.follower_weight[at] if found else 0.0, 0.0)
 
 
-def muscle_frame(rig: Rig, name: str) -> MuscleFrame:
-    m = rig.muscle(name)
-    v, f = rig.mesh.vertices, rig.mesh.faces
-    insertion = m.insertion.position(v, f)
-    attachment = m.origin.position(v, f) if m.kind == "sphincter" else rig.muscle_attachment(name)
-    return MuscleFrame(attachment, insertion, float(np.linalg.norm(insertion - attachment)))
-
-
-def deformable_vertices(rig: Rig) -> np.ndarray:
-    """Sorted indices of the vertices muscles may move: the skin and the mouth cavity."""
-    return skin_vertices(rig.mesh)
-
-
-def muscle_mask(rig: Rig) -> np.ndarray:
-    """How much (n,) of each vertex's motion the muscles may drive, from its eyelid bone weight.
-
-    The lids are bones (as in the thesis): skin bound to a lid bone by LID_RIGID_WEIGHT or more
-    follows the lid only, and the lid's blend into the surrounding skin blends the two, so nothing
-    tears at the lid border and no muscle drags a closed lid into the eyeball.
-    """
-    lids = [rig.bone_index(b) for b in rig.bone_names if b.startswith("eyelid_")]
-    if not lids:
-        return np.ones(rig.n_vertices)
-    lid = np.asarray(rig.skin_weights[:, lids].sum(axis=1)).ravel()
-    return np.clip(1.0 - lid / LID_RIGID_WEIGHT, 0.0, 1.0)
-
-
-def lip_mask(rig: Rig, insertion_vertex_point) -> np.ndarray:
-    """Vertices a muscle inserting at a point may move: not the opposite lip (n,) bool."""
-    n = rig.n_vertices
-    mask = np.ones(n, dtype=bool)
-    upper, lower = rig.regions.get("upper_lip"), rig.regions.get("lower_lip")
-    if upper is None or lower is None:
-        return mask
-    face = rig.mesh.faces[insertion_vertex_point.face]
-    corner = face[int(np.argmax(insertion_vertex_point.bary))]
-    if np.isin(corner, upper):
-        mask[lower] = False
-    elif np.isin(corner, lower):
-        mask[upper] = False
-    return mask
-
-
 class Chain:
     """The stages after the muscles: skull push, creases, skinning, eyelid sculptors, accessories
     riveted to the skin (prepared once)."""
 
-    def __init__(self, rig: Rig, *, skull: bool = True, creases: bool = True) -> None:
+    def __init__(self, rig: Rig, *, skull: bool = True) -> None:
         self.rig = rig
         anatomy = rig.anatomy
-        folds = (anatomy.creases if creases else ()) + anatomy.actions  # both are per-channel offsets
+        folds = anatomy.creases + anatomy.actions  # both are per-channel offsets
         rows, cols, vals = [], [], []
         for crease in folds:  # one row per channel: the summed crease and action offsets it drives
             offsets = (crease.offsets_rel * rig.scale).ravel()
