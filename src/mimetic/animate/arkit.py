@@ -203,13 +203,6 @@ def _half(values: Mapping[str, float], side: str) -> dict[str, float]:
     return out
 
 
-def shape_values(name: str) -> dict[str, float]:
-    """Channel values of one shape (or ICT half) at weight 1."""
-    apple, half = resolve_name(name)
-    values = arkit_table()[apple].values
-    return _half(values, half) if half else dict(values)
-
-
 # ---- weights → activations
 
 

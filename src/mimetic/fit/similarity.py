@@ -48,10 +48,6 @@ class Similarity:
         """Transformed points (k, 3) of ``points`` (k, 3)."""
         return self.scale * np.asarray(points, dtype=np.float64) @ self.rotation.T + self.translation
 
-    def apply_vectors(self, vectors: np.ndarray) -> np.ndarray:
-        """Directions (k, 3) rotated (not scaled or translated), e.g. normals."""
-        return np.asarray(vectors, dtype=np.float64) @ self.rotation.T
-
     def inverse(self) -> Similarity:
         rt = self.rotation.T
         return Similarity(1.0 / self.scale, rt, -(rt @ self.translation) / self.scale)
