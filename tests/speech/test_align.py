@@ -129,6 +129,27 @@ def test_align_audio_librivox_matches_reference_boundaries(pocketsphinx, utteran
     assert result.end_s == pytest.approx(len(samples) / rate, abs=2 * FRAME_S)
 
 
+@pytest.mark.parametrize("utterance", UTTERANCES)
+def test_align_audio_edges_on_time_when_speech_starts_and_ends_the_recording(
+    pocketsphinx, utterance, tmp_path
+):
+    """The recording cut 50 ms before the reference's first phone and after its last: without the
+    padding (``PAD_S``) the first phone took the lead-in in every utterance (onset 50 ms early) and
+    the last ran 40 ms past the speech."""
+    wav = require_shared_data(f"{LIBRIVOX}{utterance}.wav")
+    transcript = require_shared_data(f"{LIBRIVOX}{utterance}.txt").read_text()
+    spoken = load_timings(require_shared_data(f"{LIBRIVOX}{utterance}.phone.json")).spoken()
+    samples, rate = read_wav(wav)
+    lead = 0.05
+    a, b = spoken[0].start_s - lead, spoken[-1].end_s + lead
+    cut = tmp_path / "cut.wav"
+    write_wav(cut, np.round(samples[round(a * rate) : round(b * rate)] * 32767).astype(np.int16), rate)
+    result = align_audio(cut, transcript).spoken()
+    onset, offset = result[0].start_s - lead, result[-1].end_s - (b - a - lead)
+    assert abs(onset) <= 0.02, f"onset {onset * 1000:+.0f} ms"
+    assert abs(offset) <= 0.06, f"offset {offset * 1000:+.0f} ms"
+
+
 def test_align_audio_bobby_48k_is_close_to_hand_labels(pocketsphinx):
     wav = require_shared_data("speech/praatio/bobby.wav")
     with wave.open(str(wav)) as w:
