@@ -271,6 +271,10 @@ def test_unknown_phone_at_use_time_suggests_labels(rig):
             r"unknown group",
         ),
         ({"visemes": {}, "phones": {"X": {"class": "vowel", "weight": 1}}}, r"unknown key\(s\) 'weight'"),
+        (
+            {"visemes": {}, "phones": {"X": {"class": "bilabial", "closure": 0}}},
+            r"phone 'X'.closure: 0 must be a number in \(0, 1\]",
+        ),
         ({"visemes": {}, "phones": {}, "extra": 1}, r"unknown key\(s\) 'extra'"),
         ({"visemes": {}, "phones": {}}, r"'phones' must be an object"),
         ({"visemes": [], "phones": {"X": {"class": "vowel"}}}, r"'visemes' must be an object"),

@@ -33,10 +33,17 @@ articulators' speed), so in fast speech the phones' dominances overlap more and 
 undershoot their targets, as they do in real speech (Pelachaud: deformability grows with rate).
 
 **Closure guarantee** (Albrecht, Haber & Seidel 2002). At every bilabial and labiodental phone
-the frame nearest its centre takes the phone's lips and jaw targets exactly, so a 10 ms /p/ at
-24 fps still closes the lips on one frame. The phone's other frames (within half its duration of
-that one) are eased toward the same targets by a raised cosine, 1 at that frame, so a closure
-is a short hold and not a one-frame spike. The tongue keeps its blend.
+the frame nearest its closure's centre takes the phone's lips and jaw targets exactly, so a 10 ms
+/p/ at 24 fps still closes the lips on one frame. The closure's other frames are eased toward the
+same targets by a raised cosine, 1 at that frame, so a closure is a short hold and not a
+one-frame spike. The tongue keeps its blend.
+
+**Closure phase.** An aligned stop spans its closure and then its release (the burst and the
+aspiration before the vowel); the lips are shut only in the first part. The viseme map gives each
+phone's closed share (``PhoneVisemes.closure``: English P 0.6, B 0.8, nasals and fricatives 1),
+and the lips' and jaw's dominance and the guarantee are centred on that part, so the lips are shut
+at the closure's midpoint, not after it (the built-in shares follow stop closure and voice-onset
+times in read English: Crystal & House 1988, Lisker & Abramson 1964).
 
 **JALI-style dials** (Edwards et al. 2016): ``jaw`` and ``lips`` (0..2) scale the jaw and the lip
 channels around the rest pose, ``rest + k (F − rest)``; 0 keeps them at rest, 2 exaggerates.
@@ -96,8 +103,8 @@ class _Segments:
     """Phones and rest pieces in time order, p of them."""
 
     labels: tuple[str, ...]
-    centres_s: np.ndarray  # (p,)
-    durations_s: np.ndarray  # (p,)
+    centres_s: np.ndarray  # (p, g) each group's centre: a closure phone's lips and jaw at its closure's
+    durations_s: np.ndarray  # (p, g) the span around that centre
     targets: np.ndarray  # (p, c)
     alpha: np.ndarray  # (p, g) dominance magnitude per group
     scale_s: np.ndarray  # (2, p, g) anticipatory, carry-over scale
@@ -142,13 +149,19 @@ def _segments(timings: PhoneTimings, vmap: VisemeMap, channels: tuple[Channel, .
             pieces.append((phone.label, phone.start_s, phone.end_s))
         clock = max(clock, phone.end_s)
     labels = tuple(p[0] for p in pieces)
-    centres = np.array([(a + b) / 2 for _, a, b in pieces])
-    durations_s = np.array([b - a for _, a, b in pieces])
     entries = [vmap.phone(label) for label in labels]
+    closes = np.array([e.kind in CLOSURE_CLASSES for e in entries], dtype=bool)
+    start = np.array([a for _, a, _ in pieces])
+    share = np.ones((len(pieces), len(GROUPS)))  # of the phone, from its start: each group's span
+    share[:, [GROUPS.index("lips"), GROUPS.index("jaw")]] = np.where(
+        closes, [e.closure for e in entries], 1.0
+    )[:, None]
+    durations_s = np.array([b - a for _, a, b in pieces])[:, None] * share
+    centres = start[:, None] + durations_s / 2
     deform = np.array([[e.deformability[g] for g in GROUPS] for e in entries]).reshape(-1, len(GROUPS))
     alpha = ALPHA_RANGE ** (1.0 - deform)  # (p, g)
     silent = np.array([label == SILENCE for label in labels], dtype=bool)
-    alpha[silent] *= np.minimum(durations_s[silent] / REST_PIECE_S, 1.0)[:, None]  # short gaps rest little
+    alpha[silent] *= np.minimum(durations_s[silent] / REST_PIECE_S, 1.0)  # short gaps rest little
     scale = np.array([[SCALE_S[g] for g in GROUPS]], dtype=np.float64).transpose(2, 0, 1)  # (2, 1, g)
     scale = np.repeat(scale, len(pieces), axis=1)  # (2, p, g)
     window = np.full_like(scale, WINDOW_S)
@@ -164,7 +177,7 @@ def _segments(timings: PhoneTimings, vmap: VisemeMap, channels: tuple[Channel, .
         alpha,
         scale,
         window,
-        np.array([e.kind in CLOSURE_CLASSES for e in entries], dtype=bool),
+        closes,
     )
 
 
@@ -176,12 +189,13 @@ def _dominance(seg: _Segments, group: int, fps: float, n_frames: int) -> sp.csr_
     """Dominance (f, p) of every segment on group ``group`` at frame times k / fps, sparse: each
     segment reaches only the frames within its windows."""
     before, after = seg.window_s[0, :, group], seg.window_s[1, :, group]  # (p,)
-    first = np.clip(np.ceil((seg.centres_s - before) * fps), 0, n_frames - 1).astype(np.int64)
-    last = np.clip(np.floor((seg.centres_s + after) * fps), -1, n_frames - 1).astype(np.int64)
+    centres = seg.centres_s[:, group]
+    first = np.clip(np.ceil((centres - before) * fps), 0, n_frames - 1).astype(np.int64)
+    last = np.clip(np.floor((centres + after) * fps), -1, n_frames - 1).astype(np.int64)
     span = int(max(1, (last - first).max() + 1))
     frames = first[:, None] + np.arange(span)  # (p, k)
     valid = frames <= last[:, None]
-    tau = frames / fps - seg.centres_s[:, None]  # (p, k) seconds from the centre
+    tau = frames / fps - centres[:, None]  # (p, k) seconds from the centre
     ahead = tau < 0
     s = np.where(ahead, seg.scale_s[0, :, group, None], seg.scale_s[1, :, group, None])
     w = np.where(ahead, before[:, None], after[:, None])
@@ -198,9 +212,10 @@ def _close(values: np.ndarray, seg: _Segments, held: np.ndarray, fps: float) -> 
     those peak frames set to the targets exactly (so a neighbour's easing cannot undo them)."""
     n = len(values)
     closures = np.flatnonzero(seg.closure)
-    peaks = np.minimum(np.round(seg.centres_s[closures] * fps).astype(np.int64), n - 1)
+    lips = GROUPS.index("lips")
+    peaks = np.minimum(np.round(seg.centres_s[closures, lips] * fps).astype(np.int64), n - 1)
     for i, k in zip(closures, peaks, strict=True):
-        h = round(seg.durations_s[i] * fps / 2)  # frames from the peak to the phone's edges
+        h = round(seg.durations_s[i, lips] * fps / 2)  # frames from the peak to the closure's edges
         frames = np.arange(max(k - h, 0), min(k + h, n - 1) + 1)
         w = np.cos(0.5 * np.pi * (frames - k) / (h + 1))[:, None] ** 2  # 1 at k, 0 beyond h
         block = np.ix_(frames, held)
@@ -281,7 +296,8 @@ def linear_clip(
     seg = _segments(timings, vmap, channels)
     t = np.arange(_n_frames(timings, fps)) / fps  # (f,)
     # the first and last targets once more, 1 s beyond the clip at either end: held there
-    keys_s = np.concatenate([[-1.0], seg.centres_s, [max(t[-1], seg.centres_s[-1]) + 1.0]])
+    centres = seg.centres_s[:, GROUPS.index("tongue")]  # the phones' own centres
+    keys_s = np.concatenate([[-1.0], centres, [max(t[-1], centres[-1]) + 1.0]])
     keys = np.concatenate([seg.targets[:1], seg.targets, seg.targets[-1:]])
     right = np.searchsorted(keys_s, t, side="right")  # keys_s[right - 1] <= t < keys_s[right]
     u = ((t - keys_s[right - 1]) / (keys_s[right] - keys_s[right - 1]))[:, None]

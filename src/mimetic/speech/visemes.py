@@ -23,7 +23,8 @@ lips of P B M, of F V), 1 for one that takes its neighbours' shape (the lips of 
 vowel: Pelachaud's deformability). ``deformability`` in a phone entry overrides the class: one
 number for every group, or ``{"lips": ..., "jaw": ..., "tongue": ...}`` for some.
 ``mimetic.speech.coarticulation`` turns it into dominance; it also closes the lips at every
-"bilabial" and "labiodental" phone and anticipates the lip shape of "rounded" phones earlier.
+"bilabial" and "labiodental" phone (over the first ``closure`` share of a stop, the rest being its
+release) and anticipates the lip shape of "rounded" phones earlier.
 
 Built-in maps: "en" (ARPAbet on the 15 visemes of the Oculus/Meta set, with tongue), "nso"
 (Northern Sotho after Radovan 2008 ch. 10, with what is approximate in its notes) and "mpeg4" (the
@@ -81,7 +82,7 @@ CLASSES: Mapping[str, Mapping[str, float]] = MappingProxyType(
 )
 """Phone classes → default deformability (0..1) per group of ``GROUPS``."""
 _TOP_KEYS = frozenset({"format", "version", "name", "language", "description", "base", "visemes", "phones"})
-_PHONE_KEYS = frozenset({"blend", "offsets", "class", "deformability", "note"})
+_PHONE_KEYS = frozenset({"blend", "offsets", "class", "deformability", "note", "closure"})
 
 
 def channel_group(name: str) -> str:
@@ -110,6 +111,10 @@ class PhoneVisemes:
         Group (``GROUPS``) → 0..1, the class's defaults with the entry's overrides.
     note : str
         What is approximate about it, or where it comes from.
+    closure : float
+        The share of the phone, from its start, that the lips of a "bilabial" or "labiodental" phone
+        are closed: 1 for a nasal or fricative, less for a stop, whose aligned span holds its
+        closure and then its release ("closure" in the file; default 1).
     """
 
     label: str
@@ -118,6 +123,7 @@ class PhoneVisemes:
     kind: str
     deformability: Mapping[str, float]
     note: str = ""
+    closure: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -200,7 +206,16 @@ def _phone(label: str, raw: object, visemes: Mapping, base: PhoneVisemes | None,
         kind,
         MappingProxyType(_deformability(raw.get("deformability"), kind, f"{where}.deformability")),
         str(raw.get("note", "")),
+        _closure(raw.get("closure", base.closure if base else 1.0), f"{where}.closure"),
     )
+
+
+def _closure(raw: object, where: str) -> float:
+    if isinstance(raw, bool) or not isinstance(raw, int | float) or not 0.0 < raw <= 1.0:
+        raise SpeechError(
+            f"{where}: {raw!r} must be a number in (0, 1]: the share of the phone the lips are closed"
+        )
+    return float(raw)
 
 
 def _parse(data: object, source: str, name: str, visemes: Mapping | None = None) -> VisemeMap:
