@@ -25,7 +25,9 @@ falls below ``MISMATCH_SCORE``. Measured (``benchmarks/bench_speech.py``, table 
 utterances, praatIO's "bobby" and 5 espeak-ng sentences with their own transcripts, and on the
 LibriVox utterances with wrong ones (the next utterance's text, the words shuffled, the second half
 replaced): worst stretch of a correct transcript -27 (recordings) and -44 (espeak-ng), best
-(highest) worst stretch of a wrong one -53; the threshold sits between. Comparing with a free phone
+(highest) worst stretch of a wrong one -53; the threshold sits between. espeak-ng's voice is not
+reliably above it (the demo's sentence, ``tasks.demo.TALK``, has a stretch below), so
+``lipsync.lip_sync`` does not check the speech it synthesizes. Comparing with a free phone
 decoding of the same stretch (its phones force-aligned, so the scores share units) separated the
 recordings as well but not the espeak-ng sentences, so the plain score is used. Wrong transcripts
 that pruned every path fail to align at all (a ``SpeechError`` whatever ``force`` says).
