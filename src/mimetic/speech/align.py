@@ -24,9 +24,11 @@ below where it says something else. ``transcript_mismatch`` averages it over str
 falls below ``MISMATCH_SCORE``. Measured (``benchmarks/bench_speech.py``, table 1c) on the 5 LibriVox
 utterances, praatIO's "bobby" and 5 espeak-ng sentences with their own transcripts, and on the
 LibriVox utterances with wrong ones (the next utterance's text, the words shuffled, the second half
-replaced): worst stretch of a correct transcript -27 (recordings) and -44 (espeak-ng), best
-(highest) worst stretch of a wrong one -53; the threshold sits between. espeak-ng's voice is not
-reliably above it (the demo's sentence, ``tasks.demo.TALK``, has a stretch below), so
+replaced, seeded): worst stretch of a correct transcript -27.1 (recordings; 5 espeak-ng sentences
+measured once by hand: -44.3), highest worst stretch of a wrong one -49.6 (0930 shuffled; the
+other wrong ones -52.6 or lower, 7 of 18 not aligned at all); the threshold sits between, close to
+the wrong side: a wrong transcript that shares most of its words with the audio can pass.
+espeak-ng's voice is not reliably above it (the demo's sentence, ``tasks.demo.TALK``, has a stretch below), so
 ``lipsync.lip_sync`` does not check the speech it synthesizes. Comparing with a free phone
 decoding of the same stretch (its phones force-aligned, so the scores share units) separated the
 recordings as well but not the espeak-ng sentences, so the plain score is used. Wrong transcripts
@@ -163,21 +165,28 @@ def _align(decoder, audio: bytes, words: list[str]) -> list[tuple[str, list[tupl
     ]
 
 
-def transcript_mismatch(aligned: list[tuple[str, list, int]]) -> str | None:
-    """The first stretch of ``aligned`` (``_align``'s words) whose mean score per frame is below
-    ``MISMATCH_SCORE``, as "from A s to B s ("words")", or None when every stretch matches. Stretches
-    are runs of consecutive words (pauses included) of at least ``CHECK_WINDOW_S``; overlapping bad
-    runs are reported as one."""
+def stretch_scores(aligned: list[tuple[str, list, int]]) -> list[tuple[int, int, float]]:
+    """Mean score per frame of each stretch of ``aligned`` (``_align``'s words): [(i, j, score)]
+    for the runs ``aligned[i:j]`` of consecutive words (pauses included) starting at each word and
+    just reaching ``CHECK_WINDOW_S`` (the whole alignment when it is shorter)."""
     frames = [round((phones[-1][2] - phones[0][1]) / FRAME_S) for _, phones, _ in aligned]
     window = round(CHECK_WINDOW_S / FRAME_S)
-    bad: tuple[int, int] | None = None
+    stretches = []
     for i in range(len(aligned)):
         j, n = i, 0
         while j < len(aligned) and n < window:
             n, j = n + frames[j], j + 1
         if n < window and i > 0:
-            break  # the tail is inside an earlier window
-        score = sum(aligned[k][2] for k in range(i, j)) / max(n, 1)
+            break  # the tail is inside an earlier stretch
+        stretches.append((i, j, sum(aligned[k][2] for k in range(i, j)) / max(n, 1)))
+    return stretches
+
+
+def transcript_mismatch(aligned: list[tuple[str, list, int]]) -> str | None:
+    """The first stretch of ``aligned`` (``stretch_scores``) below ``MISMATCH_SCORE``, as "from A s
+    to B s ("words")", or None when every stretch matches; overlapping bad stretches are one."""
+    bad: tuple[int, int] | None = None
+    for i, j, score in stretch_scores(aligned):
         if score < MISMATCH_SCORE:
             bad = (i, j) if bad is None else (bad[0], j)
             log.debug("stretch %d..%d scores %.1f a frame", i, j, score)
