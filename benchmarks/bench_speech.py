@@ -22,6 +22,23 @@ Three tables, after the load average at the start (the machine is shared; times 
    transcript alone (typical phone durations from 0 s, as ``lip_sync`` times text without audio)
    against the same references, pooled over the LibriVox utterances and for bobby.
 
+1b. Audio alone (same utterances and references as table 1): ``align_audio`` with the transcript;
+   ``recognize_timings`` without it, "words" (recognition with the bundled English LM, then forced
+   alignment; the default) and "phones" (free phone decoding); a Rhubarb-style baseline (Rhubarb
+   Lip Sync's approach: recognised phones mapped to its mouth shapes A-H and X, each held; here the
+   "phones" timings mapped by ``RHUBARB``, boundaries measured between shape segments against the
+   reference's shape segments); and ``naive_timings`` of the transcript. Columns: phones matched,
+   median boundary error, share within 50 ms; lip level: share of 10 ms frames whose Rhubarb shape
+   is the reference's, and bilabial closures hit, the reference's P B M whose centre frame has the
+   lips closed (mimetic rows: the coarticulated clip's inner lip gap on ``small_rig`` below 0.5 %
+   of the head height, as table 2; Rhubarb-style: shape A held there); time per call.
+
+1c. Wrong transcripts: the worst stretch score (``align.stretch_scores``, mean aligned score per
+   frame over ≥ 0.5 s) of each LibriVox utterance and bobby with its own transcript, the next
+   utterance's text, its words shuffled (seeded) and its second half replaced by the next text's
+   start; "no alignment" when pocketsphinx pruned every path (refused anyway). The threshold
+   ``align.MISMATCH_SCORE`` must lie above every wrong one and below every correct one.
+
 2. Coarticulation quality on ``mimetic.testing.small_rig()`` with the wire engine, at 60 fps:
    ``coarticulate`` against the linear baseline ``linear_clip`` (the targets at phone centres
    joined by straight lines), on the same timings: "Bob bought a map by the pub.", "My mom made pea
@@ -62,10 +79,21 @@ import numpy as np
 
 from bench_basis import print_table, round_robin, table
 from mimetic.engines import make_engine
-from mimetic.speech.align import align_audio, read_wav
+from mimetic.errors import SpeechError
+from mimetic.speech.align import (
+    MISMATCH_SCORE,
+    _align_words,
+    _decoder,
+    align_audio,
+    pcm16,
+    read_wav,
+    stretch_scores,
+)
 from mimetic.speech.coarticulation import coarticulate, linear_clip
+from mimetic.speech.english import text_to_phonemes
 from mimetic.speech.lipsync import TAIL_S, lip_sync
 from mimetic.speech.phones import SILENCE, Phone, PhoneTimings
+from mimetic.speech.recognize import recognize_timings
 from mimetic.speech.timings import boundary_errors, load_timings, naive_timings
 from mimetic.speech.visemes import channel_group, phone_targets, viseme_map
 from mimetic.testing import shared_data_dir, small_rig
@@ -211,6 +239,192 @@ def bench_alignment(shared: Path | None, rounds: int) -> None:
         "   naive rows: naive_timings of the transcript alone (no audio, from 0 s), the no-audio baseline."
     )
     table(header, rows)
+    return items
+
+
+# --------------------------------------------------------------------------- 1b. audio alone
+
+RHUBARB = {
+    **dict.fromkeys(("P", "B", "M"), "A"),  # closed lips
+    **dict.fromkeys(("EH", "AE", "AH", "EY", "AY", "IH", "IY", "Y"), "C"),  # open
+    **dict.fromkeys(("AA", "AW"), "D"),  # wide open
+    **dict.fromkeys(("AO", "ER", "OY", "UH"), "E"),  # slightly rounded
+    **dict.fromkeys(("UW", "OW", "W", "R"), "F"),  # puckered
+    **dict.fromkeys(("F", "V"), "G"),  # upper teeth on the lower lip
+    "L": "H",  # tongue raised
+    SILENCE: "X",  # idle
+}
+"""ARPAbet → Rhubarb Lip Sync's mouth shapes (its documented A-H, X); every other consonant is B
+(slightly open, teeth together)."""
+
+
+def shapes(timings: PhoneTimings) -> PhoneTimings:
+    """``timings`` as Rhubarb shape segments: each phone's shape, equal neighbours merged."""
+    out: list[Phone] = []
+    for p in timings.phones:
+        label = RHUBARB.get(p.label, "B")
+        if out and out[-1].label == label and abs(out[-1].end_s - p.start_s) < 1e-6:
+            out[-1] = Phone(label, out[-1].start_s, p.end_s)
+        else:
+            out.append(Phone(label, p.start_s, p.end_s))
+    return PhoneTimings(tuple(p if p.label != "X" else Phone(SILENCE, p.start_s, p.end_s) for p in out))
+
+
+def shape_frames(timings: PhoneTimings, end_s: float) -> np.ndarray:
+    """The Rhubarb shape at each 10 ms frame centre up to ``end_s`` ("X" where no phone is)."""
+    t = (np.arange(int(end_s * 100)) + 0.5) / 100
+    labels = np.full(len(t), "X", dtype=object)
+    for p in timings.phones:
+        labels[(t >= p.start_s) & (t < p.end_s)] = RHUBARB.get(p.label, "B")
+    return labels
+
+
+def bench_audio_alone(rig, items: list | None) -> None:
+    print("\n1b. Audio alone: recognised timings against the same references")
+    if not items:
+        print("   table 1 was skipped: skipped too")
+        return
+    gap, closed = LipGap(rig), CLOSED_GAP_REL * 100
+    methods = ("text+audio", "audio: words", "audio: phones", "Rhubarb-style", "naive text")
+    acc = {
+        m: {"errors": [], "matched": 0, "total": 0, "frames": [0, 0], "bilabial": [0, 0], "s": []}
+        for m in methods
+    }
+    per = {}
+    for name, _, wav, transcript, ref in items:
+        group = "bobby" if name == "bobby" else "LibriVox"
+        samples, rate = read_wav(wav)
+        audio_s = len(samples) / rate
+        runs = {}
+        for method, call, args, kwargs in (
+            ("text+audio", align_audio, (wav, transcript), {}),
+            ("audio: words", recognize_timings, (wav,), {}),
+            ("audio: phones", recognize_timings, (wav,), {"method": "phones"}),
+            ("naive text", naive_timings, (transcript,), {}),
+        ):
+            start = time.perf_counter()
+            runs[method] = call(*args, **kwargs)
+            acc[method]["s"].append(time.perf_counter() - start)
+        runs["Rhubarb-style"] = runs["audio: phones"]
+        acc["Rhubarb-style"]["s"].append(acc["audio: phones"]["s"][-1])
+        ref_frames = shape_frames(ref, audio_s)
+        bilabials = [p for p in ref.spoken() if p.label in BILABIAL]
+        for method, timings in runs.items():
+            key = (method, group)
+            a = per.setdefault(
+                key, {"errors": [], "matched": 0, "total": 0, "frames": [0, 0], "bilabial": [0, 0]}
+            )
+            if method == "Rhubarb-style":
+                errors, matched = boundary_errors(shapes(timings), shapes(ref))
+                total = len(shapes(ref).spoken())
+                hits = sum(
+                    shape_frames(timings, audio_s)[
+                        min(int((p.start_s + p.end_s) / 2 * 100), len(ref_frames) - 1)
+                    ]
+                    == "A"
+                    for p in bilabials
+                )
+            else:
+                errors, matched = boundary_errors(timings, ref)
+                total = len(ref.spoken())
+                clip = coarticulate(_with_tail_s(timings), rig, FPS)
+                last = clip.n_frames - 1
+                hits = sum(gap(clip.values[min(centre_frame(p), last)]) < closed for p in bilabials)
+            ours = shape_frames(timings, audio_s)
+            for d in (acc[method], a):
+                d["errors"].append(errors)
+                d["matched"] += matched
+                d["total"] += total
+                d["frames"][0] += int(np.sum(ours == ref_frames))
+                d["frames"][1] += len(ref_frames)
+                d["bilabial"][0] += hits
+                d["bilabial"][1] += len(bilabials)
+    header = (
+        "method",
+        "utterances",
+        "matched",
+        "median ms",
+        "≤ 50 ms",
+        "shape frames",
+        "bilabials closed",
+        "time s",
+    )
+    rows = []
+    for method in methods:
+        for group in ("LibriVox", "bobby"):
+            d = per[(method, group)]
+            e = np.concatenate(d["errors"])
+            rows.append(
+                (
+                    method if group == "LibriVox" else "",
+                    group,
+                    f"{d['matched']}/{d['total']}",
+                    f"{np.median(e) * 1e3:.1f}",
+                    f"{np.mean(e <= WITHIN_GOAL_S):.1%}",
+                    f"{d['frames'][0] / d['frames'][1]:.1%}",
+                    f"{d['bilabial'][0]}/{d['bilabial'][1]}",
+                    f"{statistics.median(acc[method]['s']):.2f}",
+                )
+            )
+    print(
+        "   LibriVox: 5 utterances pooled (references by pocketsphinx's aligner); bobby: hand labels.\n"
+        "   Rhubarb-style rows compare shape segments (so 'matched' counts shapes, not phones);\n"
+        "   shape frames: 10 ms frames whose Rhubarb shape equals the reference's; time: median per call."
+    )
+    table(header, rows)
+
+
+def _with_tail_s(timings: PhoneTimings) -> PhoneTimings:
+    if timings.phones and timings.phones[-1].label != SILENCE:
+        tail = Phone(SILENCE, timings.end_s, timings.end_s + TAIL_S)
+        return PhoneTimings((*timings.phones, tail), timings.language, timings.words)
+    return timings
+
+
+# --------------------------------------------------------------------------- 1c. wrong transcripts
+
+
+def worst_stretch(wav: Path, transcript: str) -> float | None:
+    """The lowest ``stretch_scores`` of ``transcript`` aligned to ``wav``; None when it cannot align."""
+    audio = pcm16(*read_wav(wav))
+    spoken = [w for w in text_to_phonemes(transcript) if not w.is_pause]
+    for wide in (False, True):
+        try:
+            _, aligned = _align_words(_decoder(wide=wide), audio, spoken, "en")
+        except SpeechError:
+            continue
+        return min(score for _, _, score in stretch_scores(aligned))
+    return None
+
+
+def bench_wrong_transcripts(items: list | None) -> None:
+    print("\n1c. Wrong transcripts: worst stretch score (mean aligned score per frame over ≥ 0.5 s)")
+    if not items:
+        print("   table 1 was skipped: skipped too")
+        return
+    rng = np.random.default_rng(0)
+    texts = [transcript for _, _, _, transcript, _ in items]
+    header = ("utterance", "correct", "next text", "shuffled", "half replaced")
+    rows, correct, wrong = [], [], []
+    for k, (name, _, wav, transcript, _) in enumerate(items):
+        words, other = transcript.split(), texts[(k + 1) % len(texts)].split()
+        half = len(words) // 2
+        variants = (
+            transcript,
+            " ".join(other),
+            " ".join(rng.permutation(words)),
+            " ".join([*words[:half], *other[: max(3, len(words) - half)]]),
+        )
+        scores = [worst_stretch(wav, t) for t in variants]
+        correct += [] if scores[0] is None else [scores[0]]
+        wrong += [s for s in scores[1:] if s is not None]
+        rows.append((name, *("no alignment" if s is None else f"{s:.1f}" for s in scores)))
+    table(header, rows)
+    print(
+        f"   threshold align.MISMATCH_SCORE = {MISMATCH_SCORE:g}: correct ones ≥ {min(correct):.1f} "
+        f"(all pass: {'yes' if min(correct) > MISMATCH_SCORE else 'NO'}), wrong ones ≤ {max(wrong):.1f} "
+        f"(all refused: {'yes' if max(wrong) < MISMATCH_SCORE else 'NO'})"
+    )
 
 
 # --------------------------------------------------------------------------- 2. coarticulation quality
@@ -432,7 +646,9 @@ def main() -> None:
         shared = None
     rig = small_rig()
     print(f"rig: small_rig(), {rig.n_vertices:,} vertices, {len(rig.channels)} channels")
-    bench_alignment(shared, 1 if args.quick else 3)
+    items = bench_alignment(shared, 1 if args.quick else 3)
+    bench_audio_alone(rig, items)
+    bench_wrong_transcripts(items)
     bench_coarticulation(rig, shared)
     bench_speed(rig, 5 if args.quick else 15)
     wall = time.perf_counter() - begin

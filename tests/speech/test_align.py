@@ -242,3 +242,29 @@ def test_synthesize_unknown_voice_fails_cleanly(espeak, tmp_path):
         synthesize("Dumela", tmp_path / "keep.wav", voice="nso")
     assert (tmp_path / "keep.wav").read_bytes() == b"old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.wav"]
+
+
+# --------------------------------------------------------------------------- wrong transcripts
+
+
+def test_align_audio_passes_every_correct_librivox_transcript(pocketsphinx):
+    folder = require_shared_data("speech/librivox")
+    for u in UTTERANCES:
+        wav = folder / f"sense_and_sensibility_01_austen_64kb-{u}.wav"
+        assert align_audio(wav, wav.with_suffix(".txt").read_text()).spoken()
+
+
+def test_align_audio_refuses_a_wrong_transcript_naming_the_stretch_unless_forced(pocketsphinx):
+    """The second half of 0930 replaced by the start of 0880's text: refused, naming where it
+    first goes wrong; with force the same text is aligned over the recording."""
+    folder = require_shared_data("speech/librivox")
+    wav = folder / "sense_and_sensibility_01_austen_64kb-0930.wav"
+    words = wav.with_suffix(".txt").read_text().split()  # he might even have been made amiable himself
+    wrong = " ".join([*words[:4], "he", "was", "not", "an"])
+    with pytest.raises(
+        SpeechError, match=r"does not say the transcript from \d+\.\d\d s to \d+\.\d\d s \(\"have he"
+    ) as error:
+        align_audio(wav, wrong)
+    assert "force=True" in str(error.value) and "\n" not in str(error.value)
+    forced = align_audio(wav, wrong, force=True)
+    assert [w for w in forced.words] == ["he", "might", "even", "have", "he", "was", "not", "an"]

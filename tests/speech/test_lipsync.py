@@ -158,3 +158,31 @@ def test_speak_scenes_carry_the_animation(rig_file, tmp_path, suffix):
 
         stage = Usd.Stage.Open(str(out))
         assert stage.GetEndTimeCode() - stage.GetStartTimeCode() == frames - 1
+
+
+def test_speak_audio_alone_recognises_the_words(rig_file, tmp_path):
+    require_extra("pocketsphinx", "speech")
+    wav = require_shared_data(f"speech/librivox/{LIBRIVOX}.wav")
+    out, grid = tmp_path / "alone.json", tmp_path / "alone.TextGrid"
+    result = run_cli("speak", rig_file, "--audio", wav, "-o", out, "--timings-out", grid)
+    assert result.exit_code == 0, result.output
+    assert "recognised from" in result.output
+    timings = load_timings(grid)
+    assert "john" in timings.words and "leisure" in timings.words
+    assert load_clip(out).duration_s >= seconds_of(wav) - 1 / 30
+    nso_run = run_cli("speak", rig_file, "--audio", wav, "--language", "nso", "-o", tmp_path / "n.json")
+    assert nso_run.exit_code == 1 and "--text" in nso_run.output
+
+
+def test_speak_refuses_a_wrong_transcript_unless_forced(rig_file, tmp_path):
+    require_extra("pocketsphinx", "speech")
+    wav = require_shared_data(f"speech/librivox/{LIBRIVOX}.wav")
+    wrong = wav.with_name("sense_and_sensibility_01_austen_64kb-0880.txt").read_text()
+    out = tmp_path / "wrong.json"
+    refused = run_cli("speak", rig_file, "--audio", wav, "--text", wrong, "-o", out)
+    assert refused.exit_code == 1 and "does not say the transcript from" in refused.output
+    assert '"he was not' in refused.output and not out.exists()
+    assert "pass --force to align" in refused.output  # the library's force=True in the CLI's words
+    forced = run_cli("speak", rig_file, "--audio", wav, "--text", wrong, "--force", "-o", out)
+    assert forced.exit_code == 0, forced.output
+    assert out.exists()

@@ -108,13 +108,18 @@ def message(error: BaseException) -> str:
 
 
 def cli_words(text: str, flags: dict[str, str]) -> str:
-    """A library message in the command line's words: ``fps=30`` and ``units='m'`` become ``--fps 30``
-    and ``--units m`` for the options (name → flag) of the running command."""
+    """A library message in the command line's words: ``fps=30``, ``units='m'`` and ``force=True``
+    become ``--fps 30``, ``--units m`` and ``--force`` for the options (name → flag) of the running
+    command."""
     for name, flag in sorted(flags.items(), key=lambda item: -len(item[0])):
         value = r"""(?:'([^']*)'|"([^"]*)"|([^\s,;:()'"]+))?"""
         text = re.sub(
             rf"(?<![\w.-]){re.escape(name)}={value}",
-            lambda m, flag=flag: f"{flag} {next((g for g in m.groups() if g), '')}".rstrip(),
+            lambda m, flag=flag: (
+                flag
+                if m.group(0).endswith("=True")
+                else f"{flag} {next((g for g in m.groups() if g), '')}".rstrip()
+            ),
             text,
         )
     return text

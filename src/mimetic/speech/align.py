@@ -15,6 +15,25 @@ Northern Sotho: no acoustic model exists, so each phone is aligned as its neares
 joined back into the Sepedi phone. This is an approximation: expect boundaries to be rougher than
 in English, especially for phones English lacks (HL, KG, G, BJ).
 
+**A transcript that does not match the audio is refused** (English; ``force=True`` aligns it
+anyway). pocketsphinx scores each aligned frame against the best-scoring model state of that frame
+(its senone scores are normalised so the best is 0), so an aligned word's score per frame is a
+goodness of fit next to an unconstrained choice of sound: near 0 where the audio says the word, far
+below where it says something else. ``transcript_mismatch`` averages it over stretches of at least
+``CHECK_WINDOW_S`` of consecutive aligned words and pauses and refuses the transcript when a stretch
+falls below ``MISMATCH_SCORE``. Measured (``benchmarks/bench_speech.py``, table 1c) on the 5 LibriVox
+utterances, praatIO's "bobby" and 5 espeak-ng sentences with their own transcripts, and on the
+LibriVox utterances with wrong ones (the next utterance's text, the words shuffled, the second half
+replaced, seeded): worst stretch of a correct transcript -27.1 (recordings; 5 espeak-ng sentences
+measured once by hand: -44.3), highest worst stretch of a wrong one -49.6 (0930 shuffled; the
+other wrong ones -52.6 or lower, 7 of 18 not aligned at all); the threshold sits between, close to
+the wrong side: a wrong transcript that shares most of its words with the audio can pass.
+espeak-ng's voice is not reliably above it (the demo's sentence, ``tasks.demo.TALK``, has a stretch below), so
+``lipsync.lip_sync`` does not check the speech it synthesizes. Comparing with a free phone
+decoding of the same stretch (its phones force-aligned, so the scores share units) separated the
+recordings as well but not the espeak-ng sentences, so the plain score is used. Wrong transcripts
+that pruned every path fail to align at all (a ``SpeechError`` whatever ``force`` says).
+
 pocketsphinx is in the extra ``[speech]``; espeak-ng (GPL) is only ever run as a separate program.
 """
 
@@ -42,6 +61,11 @@ SAMPLE_RATE = 16000
 """Hz: the rate of pocketsphinx's English acoustic model."""
 FRAME_S = 0.01
 """pocketsphinx's frame: alignment times are multiples of it."""
+MISMATCH_SCORE = -48.0
+"""Mean aligned score per frame (pocketsphinx's log units, 0 = the frame's best state) below which a
+stretch of the alignment does not say its words (see the module docstring for the measurement)."""
+CHECK_WINDOW_S = 0.5
+"""The shortest stretch ``transcript_mismatch`` judges: a short word alone scores too noisily."""
 ESPEAK_TIMEOUT_S = 60.0
 PAD_S = 0.3
 """Silence added before and after the audio for the alignment (seconds, then taken off): without it
@@ -120,9 +144,10 @@ def _decoder(wide: bool = False):
     )
 
 
-def _align(decoder, audio: bytes, words: list[str]) -> list[tuple[str, list[tuple[str, float, float]]]]:
+def _align(decoder, audio: bytes, words: list[str]) -> list[tuple[str, list[tuple[str, float, float]], int]]:
     """Two-pass alignment of ``words`` (all in the decoder's dictionary) to 16 kHz PCM ``audio``:
-    [(word, [(phone, start_s, end_s), …]), …] with pocketsphinx's pauses as words "<sil>"."""
+    [(word, [(phone, start_s, end_s), …], score), …] with pocketsphinx's pauses as words "<sil>";
+    ``score`` is the word's acoustic score summed over its frames (log units, ≤ 0)."""
     failed = (
         "pocketsphinx could not align the transcript to the audio ({}): check that the audio says "
         "exactly the transcript and is not silent or too short"
@@ -141,9 +166,53 @@ def _align(decoder, audio: bytes, words: list[str]) -> list[tuple[str, list[tupl
     if alignment is None:
         raise SpeechError(failed.format("no alignment"))
     return [
-        (w.name, [(p.name, p.start * FRAME_S, (p.start + p.duration) * FRAME_S) for p in w])
+        (w.name, [(p.name, p.start * FRAME_S, (p.start + p.duration) * FRAME_S) for p in w], w.score)
         for w in alignment
     ]
+
+
+def stretch_scores(aligned: list[tuple[str, list, int]], edge_s: float = 0.0) -> list[tuple[int, int, float]]:
+    """Mean score per frame of each stretch of ``aligned`` (``_align``'s words): [(i, j, score)]
+    for the runs ``aligned[i:j]`` of consecutive words (pauses included) starting at each word and
+    just reaching ``CHECK_WINDOW_S`` (the whole alignment when it is shorter). Pauses within
+    ``edge_s`` of either end are passed over: they score the padding (``PAD_S``), not the transcript."""
+    end_s = aligned[-1][1][-1][2] if aligned else 0.0
+
+    def counted(name: str, phones: list) -> bool:
+        edge = phones[0][1] < edge_s - 1e-9 or phones[-1][2] > end_s - edge_s + 1e-9
+        return not (edge and name.startswith(("<", "[")))
+
+    frames = [round((p[-1][2] - p[0][1]) / FRAME_S) if counted(name, p) else 0 for name, p, _ in aligned]
+    window = round(CHECK_WINDOW_S / FRAME_S)
+    stretches = []
+    for i in range(len(aligned)):
+        j, n = i, 0
+        while j < len(aligned) and n < window:
+            n, j = n + frames[j], j + 1
+        if n < window and i > 0:
+            break  # the tail is inside an earlier stretch
+        score = sum(aligned[k][2] for k in range(i, j) if frames[k])
+        stretches.append((i, j, score / max(n, 1)))
+    return stretches
+
+
+def transcript_mismatch(aligned: list[tuple[str, list, int]], offset_s: float = 0.0) -> str | None:
+    """The first stretch of ``aligned`` (``stretch_scores``) below ``MISMATCH_SCORE``, as "from A s
+    to B s ("words")" on a clock ``offset_s`` behind the alignment's, or None when every stretch
+    matches; overlapping bad stretches are one."""
+    bad: tuple[int, int] | None = None
+    for i, j, score in stretch_scores(aligned, offset_s):
+        if score < MISMATCH_SCORE:
+            bad = (i, j) if bad is None else (bad[0], j)
+            log.debug("stretch %d..%d scores %.1f a frame", i, j, score)
+        elif bad is not None and i >= bad[1]:
+            break
+    if bad is None:
+        return None
+    stretch = aligned[bad[0] : bad[1]]
+    words = " ".join(name.split("(")[0] for name, _, _ in stretch if not name.startswith("<")) or "a pause"
+    start, end = stretch[0][1][0][1] - offset_s, stretch[-1][1][-1][2] - offset_s
+    return f'from {max(start, 0.0):.2f} s to {end:.2f} s ("{words}")'
 
 
 def _stressed(word: str, phones: list[tuple[str, float, float]], guess: WordPhones | None) -> list:
@@ -175,7 +244,9 @@ def _align_words(decoder, audio: bytes, spoken: list[WordPhones], language: str)
     return keys, _align(decoder, audio, keys)
 
 
-def align_audio(wav_path: str | Path, transcript: str, *, language: str = "en") -> PhoneTimings:
+def align_audio(
+    wav_path: str | Path, transcript: str, *, language: str = "en", force: bool = False
+) -> PhoneTimings:
     """Phone timings of a recording of ``transcript`` (see the module docstring).
 
     Parameters
@@ -186,6 +257,9 @@ def align_audio(wav_path: str | Path, transcript: str, *, language: str = "en") 
         Exactly what is said; numbers and punctuation are fine (English is read by
         ``text_to_phonemes``, Northern Sotho by ``nso.nso_to_phonemes``).
     language : {"en", "nso"}
+    force : bool
+        Align an English transcript even where the audio does not say it (see the module docstring);
+        Northern Sotho is never checked (English scores of Sepedi sounds say little).
 
     Returns
     -------
@@ -199,7 +273,7 @@ def align_audio(wav_path: str | Path, transcript: str, *, language: str = "en") 
         pocketsphinx (extra ``[speech]``) is not installed.
     SpeechError
         The audio cannot be read (see ``read_wav``), the transcript has no words or cannot be read,
-        or the alignment fails.
+        the alignment fails, or (English, without ``force``) the audio does not say the transcript.
     """
     if language not in LANGUAGES:
         raise SpeechError(f"unknown language {language!r}; mimetic speaks {', '.join(LANGUAGES)}")
@@ -217,11 +291,18 @@ def align_audio(wav_path: str | Path, transcript: str, *, language: str = "en") 
     except SpeechError:  # the first pass pruned every path: search again with wide beams
         keys, aligned = _align_words(_decoder(wide=True), audio, spoken, language)
     log.debug("aligned %d words to %s", len(spoken), wav_path)
+    if language == "en" and not force and (stretch := transcript_mismatch(aligned, PAD_S)) is not None:
+        raise SpeechError(
+            f"{Path(wav_path).name}: the audio does not say the transcript {stretch}; check the text, "
+            "or pass force=True to align it anyway"
+        )
     if language == "en":
         guesses = {w.text: w for w in spoken}
-        words = [(name, _stressed(name, phones, guesses.get(name.split("(")[0]))) for name, phones in aligned]
+        words = [
+            (name, _stressed(name, phones, guesses.get(name.split("(")[0]))) for name, phones, _ in aligned
+        ]
     else:
-        words = [_join_nso(name, phones, spoken, keys) for name, phones in aligned]
+        words = [_join_nso(name, phones, spoken, keys) for name, phones, _ in aligned]
     return timings_from_words(_unpadded(words, len(samples) / rate), language=language, source=str(wav_path))
 
 

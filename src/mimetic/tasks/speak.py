@@ -25,8 +25,10 @@ class SpeakOptions(PlayOptions):
         None, "Phone timings: Praat/MFA TextGrid, CSV or JSON (phoneme, start, end)."
     )
     audio: Path | None = option(
-        None, "A recording (WAV): aligned to the text offline, and muxed into an MP4."
+        None,
+        "A recording (WAV): aligned to the text offline (English without text: recognised); in an MP4.",
     )
+    force: bool = option(False, "Align the text even where the recording does not say it.")
     synthesize: bool = option(False, "Speak the text with the espeak-ng program and sync to its sound.")
     language: str = option("en", "en (English) or nso (Northern Sotho, Sesotho sa Leboa).", choices=LANGUAGES)
     visemes: str | None = option(
@@ -88,6 +90,7 @@ def run(source: Path, output: Path, options: SpeakOptions, progress: Progress | 
             eyes=options.eyes,
             seed=options.seed,
             baseline=options.baseline,
+            force=options.force,
         )
         written = [
             write_clip(
@@ -114,5 +117,5 @@ TASK = Task(
     run,
     (*SCENES, *VIDEOS, ".json", ".csv"),
     source="rig",
-    required=(("text", "text_file", "timings"),),
+    required=(("text", "text_file", "timings", "audio"),),
 )
