@@ -8,6 +8,7 @@ import re
 import shutil
 import subprocess
 import wave
+from pathlib import Path
 
 import imageio_ffmpeg
 import numpy as np
@@ -158,3 +159,82 @@ def test_speak_scenes_carry_the_animation(rig_file, tmp_path, suffix):
 
         stage = Usd.Stage.Open(str(out))
         assert stage.GetEndTimeCode() - stage.GetStartTimeCode() == frames - 1
+
+
+def _needs_synthesis():
+    require_extra("pocketsphinx", "speech")
+    if shutil.which("espeak-ng") is None:
+        pytest.skip("the espeak-ng program is not installed (apt-get install espeak-ng)")
+
+
+def _espeak(voice: str, text: str, wav) -> bytes:
+    subprocess.run(["espeak-ng", "-v", voice, "-w", str(wav), text], check=True, capture_output=True)
+    return wav.read_bytes()
+
+
+def test_northern_sotho_is_synthesized_with_the_setswana_voice_and_says_so(tmp_path):
+    """Sepedi is spoken by espeak-ng's Setswana voice (never its English one), and the user is told."""
+    _needs_synthesis()
+    text = "Dumela, o kae? Ke a leboga."
+    speech = lip_sync(small_rig(), text=text, language="nso", synthesize_to=tmp_path / "nso.wav")
+    sound = speech.audio.read_bytes()
+    assert sound == _espeak("tn", text, tmp_path / "tn.wav")
+    assert sound != _espeak("en-us", text, tmp_path / "en.wav")
+    assert len(speech.notes) == 1 and "Setswana" in speech.notes[0]
+    assert "espeak-ng -v tn" in speech.source and str(tmp_path) not in speech.source
+    english = lip_sync(small_rig(), text="Hello there", synthesize_to=tmp_path / "en2.wav")
+    assert english.notes == () and "-v en-us" in english.source
+
+
+@pytest.mark.parametrize("suffix", [".json", ".glb"])
+def test_speak_keeps_the_synthesized_audio_and_names_only_files_that_exist(rig_file, tmp_path, suffix):
+    _needs_synthesis()
+    out, wav = tmp_path / f"hello{suffix}", tmp_path / "hello.wav"
+    result = run_cli(
+        "speak", rig_file, "--text", "Hello there", "--synthesize", "--audio-out", wav, "-o", out
+    )
+    assert result.exit_code == 0, result.output
+    assert seconds_of(wav) > 0.5 and not list(tmp_path.glob(".hello.wav.*"))  # whole, no temporary left
+    assert _espeak("en-us", "Hello there", tmp_path / "ref.wav") == wav.read_bytes()
+    named = re.findall(r"(/\S+)", result.output)
+    assert set(named) == {str(out), str(wav)}  # no path of a deleted scratch file
+    assert all(Path(p).is_file() for p in named)
+
+
+def test_speak_audio_out_needs_synthesize_and_a_wav(rig_file, tmp_path):
+    alone = run_cli(
+        "speak", rig_file, "--text", "Hi", "--audio-out", tmp_path / "a.wav", "-o", tmp_path / "a.json"
+    )
+    assert alone.exit_code == 2 and "--audio-out" in alone.output and "with synthesize" in alone.output
+    mp3 = run_cli(
+        "speak",
+        rig_file,
+        "--text",
+        "Hi",
+        "--synthesize",
+        "--audio-out",
+        tmp_path / "a.mp3",
+        "-o",
+        tmp_path / "a.json",
+    )
+    assert mp3.exit_code != 0 and ".wav" in mp3.output
+    assert not (tmp_path / "a.json").exists()
+
+
+def test_speak_says_a_video_from_text_alone_is_silent(rig_file, tmp_path):
+    silent = run_cli("speak", rig_file, "--text", "Hi", "-o", tmp_path / "hi.mp4", "--size", 64, "--no-eyes")
+    assert silent.exit_code == 0, silent.output
+    assert "note: the video is silent" in silent.output
+    clip = run_cli("speak", rig_file, "--text", "Hi", "-o", tmp_path / "hi.json")
+    assert "silent" not in clip.output
+
+
+def test_speak_unknown_viseme_map_lists_the_built_in_ones(rig_file, tmp_path):
+    result = run_cli("speak", rig_file, "--text", "Hi", "--visemes", "arpabet", "-o", tmp_path / "x.json")
+    assert result.exit_code == 1
+    assert "unknown viseme map 'arpabet'" in result.output
+    assert "en, nso, mpeg4" in result.output and "a map .json" in result.output
+    missing = run_cli(
+        "speak", rig_file, "--text", "Hi", "--visemes", tmp_path / "mine.json", "-o", tmp_path / "y.json"
+    )
+    assert missing.exit_code == 1 and "mine.json" in missing.output
