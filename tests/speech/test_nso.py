@@ -16,22 +16,24 @@ from mimetic.speech.phones import SILENCE
 @pytest.mark.parametrize(
     ("word", "phones"),
     [
-        ("tšhwene", ("CHH", "W", "E", "N", "E")),  # baboon: tšh, not tš + h
-        ("tshwene", ("TSH", "W", "E", "N", "E")),
-        ("kgomo", ("KG", "O", "M", "O")),  # cow
-        ("hlogo", ("HL", "O", "G", "O")),  # head
+        ("tšhwene", ("CHH", "W", "E_OPEN", "N", "E_OPEN")),  # baboon: tšh, not tš + h
+        ("tshwene", ("TSH", "W", "E_OPEN", "N", "E_OPEN")),
+        ("kgomo", ("KG", "O_OPEN", "M", "O_OPEN")),  # cow
+        ("hlogo", ("HL", "O_OPEN", "G", "O_OPEN")),  # head
         ("ngwana", ("NG", "W", "A", "N", "A")),  # child
-        ("šela", ("SH", "E", "L", "A")),
-        ("bêilê", ("B", "E_OPEN", "I", "L", "E_OPEN")),
-        ("bôna", ("B", "O_OPEN", "N", "A")),
+        ("šela", ("SH", "E_OPEN", "L", "A")),
+        ("bêilê", ("B", "E", "I", "L", "E")),  # the circumflex marks the close-mid vowels
+        ("bôna", ("B", "O", "N", "A")),
         ("tlhapa", ("TLH", "A", "P", "A")),
-        ("tlase", ("TL", "A", "S", "E")),
-        ("mokgalabje", ("M", "O", "KG", "A", "L", "A", "BJ", "E")),
+        ("tlase", ("TL", "A", "S", "E_OPEN")),
+        ("mokgalabje", ("M", "O_OPEN", "KG", "A", "L", "A", "BJ", "E_OPEN")),
         ("Diphahla", ("D", "I", "PH", "A", "HL", "A")),
         ("nyaka", ("NY", "A", "K", "A")),
         ("hlapša", ("HL", "A", "PSH", "A")),
-        ("lefsifsi", ("L", "E", "FS", "I", "FS", "I")),
-        ("utswitšwêgo", ("U", "TS", "W", "I", "CH", "W", "E_OPEN", "G", "O")),
+        ("lefsifsi", ("L", "E_OPEN", "FS", "I", "FS", "I")),
+        ("utswitšwêgo", ("U", "TS", "W", "I", "CH", "W", "E", "G", "O_OPEN")),
+        ("psha", ("PS_H", "A")),  # one aspirated affricate, once p + s + h
+        ("pšhatla", ("PSH_H", "A", "TL", "A")),
     ],
 )
 def test_word_to_phones_takes_longest_grapheme(word, phones):
@@ -43,6 +45,27 @@ def test_word_to_phones_reads_decomposed_and_upper_case_letters():
     assert len(decomposed) > len("TŠHWENE BÊILÊ")
     assert nso.word_to_phones(decomposed.split()[0]) == nso.word_to_phones("tšhwene")
     assert nso.word_to_phones(decomposed.split()[1]) == nso.word_to_phones("bêilê")
+
+
+@pytest.mark.parametrize(
+    ("word", "ipa", "was"),
+    [
+        ("dumela", "ɭumɛla", "ɽumela"),  # d retroflex lateral; unmarked e open-mid
+        ("kgomo", "kxɔmɔ", "kxʰomo"),  # kg unaspirated; unmarked o open-mid
+        ("lefsifsi", "lɛɸsiɸsi", "lefsifsi"),  # fs bilabial
+        ("lefšega", "lɛɸʃɛɣa", "lefʃeɣa"),
+        ("psha", "psʰa", "pʼsɦa"),  # psh one sound, not three
+        ("bôna", "βona", "βɔna"),  # the circumflex: close-mid
+    ],
+)
+def test_word_to_phones_reads_the_lwazi_values_not_the_old_ones(word, ipa, was):
+    got = "".join(nso.PHONES[p] for p in nso.word_to_phones(word))
+    assert got == ipa and got != was
+
+
+def test_for_synthesis_respells_what_the_setswana_voice_misreads():
+    assert nso.for_synthesis("Šela tšhwene, pšha bêilê ôna") == "Shela tšhwene, psha beile ona"
+    assert nso.SYNTHESIS_VOICE == "tn" and "Setswana" in nso.SYNTHESIS_NOTE
 
 
 def test_nso_to_phonemes_gives_words_and_pauses():
@@ -68,7 +91,7 @@ def test_nso_to_phonemes_rejects_digits():
 
 
 def test_phone_table_is_consistent_and_ascii():
-    assert len(nso.PHONES) == len(nso.TABLE) == len(nso.GRAPHEMES) == 43
+    assert len(nso.PHONES) == len(nso.TABLE) == len(nso.GRAPHEMES) == 46
     for label, ipa in nso.PHONES.items():
         assert re.fullmatch(r"[A-Z][A-Z_]*", label), label
         assert ipa and not any(c.isupper() or c.isdigit() for c in ipa), ipa
@@ -84,6 +107,6 @@ def test_durations_vowels_outlast_simple_consonants_and_double_articulations_are
     d = nso.DURATIONS_S
     simple = ["P", "T", "K", "B", "D", "M", "N", "L", "R", "W", "Y", "H", "G"]
     assert min(d[v] for v in nso.VOWELS) > max(d[c] for c in simple)
-    assert d["BJ"] > d["B"] and d["PSH"] > d["P"] and d["FS"] > d["F"]
+    assert d["BJ"] > d["B"] and d["PSH"] > d["P"] and d["FS"] > d["F"] and d["PS_H"] > d["PS"] > d["P"]
     assert d["TSH"] > d["TS"] > d["T"] and d["KG"] > d["K"]
     assert d["A"] > d["I"] and d["A"] > d["U"]  # low vowels outlast high ones

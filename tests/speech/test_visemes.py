@@ -129,6 +129,21 @@ def test_vowel_jaw_opening_follows_openness(rig):
         :, rig.channel_names.index("jaw_open")
     ]
     assert nso[0] > nso[1] > nso[2] > nso[3] and nso[4] < nso[2]
+    # open-mid (unmarked e, o) opens the jaw a little more than close-mid (ê, ô): 10-80 % more
+    mid = phone_targets(viseme_map("nso"), ["E_OPEN", "E", "O_OPEN", "O"], rig)[
+        :, rig.channel_names.index("jaw_open")
+    ]
+    assert 1.1 < mid[0] / mid[1] < 1.8 and 1.1 < mid[2] / mid[3] < 1.8
+
+
+def test_nso_fs_is_bilabial_and_ps_one_target(rig):
+    """fs and fš are bilabial [ɸs] [ɸʃ] (the Lwazi phone set): no lower lip on the teeth as for f;
+    ps, psh, pšh (one phone each) close the lips."""
+    vmap = viseme_map("nso")
+    lower = rig.channel_names.index("orbicularis_oris_marginalis_lower")
+    f, fs, fsh = phone_targets(vmap, ["F", "FS", "FSH"], rig)[:, lower]
+    assert f > 0.5 and fs < 0.2 * f and fsh < 0.2 * f
+    assert {vmap.phones[p].kind for p in ("FS", "FSH", "PS", "PS_H", "PSH_H")} == {"bilabial"}
 
 
 # ---- shapes on the geometry

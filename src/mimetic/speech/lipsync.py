@@ -16,6 +16,7 @@ import numpy as np
 from mimetic.errors import SpeechError
 from mimetic.rig.activations import Clip
 from mimetic.rig.model import Rig
+from mimetic.speech import nso
 from mimetic.speech.align import align_audio, read_wav, synthesize
 from mimetic.speech.coarticulation import add_eye_motion, coarticulate, linear_clip
 from mimetic.speech.phones import SILENCE, Phone, PhoneTimings
@@ -28,15 +29,21 @@ TAIL_S = 0.4
 """Silence added after the last phone when the timings end on a sound: the face relaxes to rest."""
 
 
+ENGLISH_VOICE = "en-us"
+"""The espeak-ng voice that speaks English text (Northern Sotho: ``nso.SYNTHESIS_VOICE``)."""
+
+
 @dataclass(frozen=True)
 class Speech:
     """A lip-synced performance: its phone ``timings``, the ``clip`` of activations and the ``audio``
-    it plays with (None for none); ``source`` says where the timings came from."""
+    it plays with (None for none); ``source`` says where the timings came from; ``notes`` what the
+    user should be told (Sepedi spoken by the Setswana voice)."""
 
     timings: PhoneTimings
     clip: Clip
     audio: Path | None
     source: str
+    notes: tuple[str, ...] = ()
 
 
 def _timings(
@@ -59,16 +66,15 @@ def _timings(
     if audio is not None and synthesize_to is not None:
         raise SpeechError("give either recorded audio (--audio) or --synthesize, not both")
     if synthesize_to is not None:
-        audio = synthesize(text, synthesize_to)
-    if audio is not None:
+        voice = nso.SYNTHESIS_VOICE if language == "nso" else ENGLISH_VOICE
+        spoken = nso.for_synthesis(text) if language == "nso" else text
+        sound = synthesize(spoken, synthesize_to, voice=voice)
+        source = f"aligned to speech synthesized by espeak-ng -v {voice}"
         # synthesized speech says its text by construction, and espeak-ng's voice scores below
         # recordings (the demo sentence fell under align.MISMATCH_SCORE): never checked
-        checked = not force and synthesize_to is None
-        return (
-            align_audio(audio, text, language=language, force=not checked),
-            Path(audio),
-            f"aligned to {audio}",
-        )
+        return align_audio(sound, text, language=language, force=True), sound, source
+    if audio is not None:
+        return align_audio(audio, text, language=language, force=force), Path(audio), f"aligned to {audio}"
     return naive_timings(text, language=language, rate=rate), None, f"text at rate {rate:g}"
 
 
@@ -124,7 +130,8 @@ def lip_sync(
       refused where the audio does not say the text unless ``force`` (``align.align_audio``);
     * ``audio`` alone: English speech recognised offline, then aligned (``recognize.recognize_timings``);
     * ``text`` and ``synthesize_to`` (a WAV path): speech synthesized by the ``espeak-ng`` program,
-      then aligned, so the mouth matches the sound;
+      then aligned, so the mouth matches the sound; Northern Sotho with the nearest voice espeak-ng
+      has (``nso.SYNTHESIS_VOICE``, Setswana), which ``Speech.notes`` says;
     * ``text`` alone: naive timing at ``rate`` (2 = twice as fast).
 
     ``visemes`` is a map name ("en", "nso", "mpeg4"), a ``VisemeMap`` or None (the language's own);
@@ -144,4 +151,5 @@ def lip_sync(
         clip = _hold(clip, rig, len(samples) / sample_rate)
     if eyes:
         clip = add_eye_motion(clip, rig, seed=seed)
-    return Speech(phones, clip, sound, source)
+    notes = (nso.SYNTHESIS_NOTE,) if synthesize_to is not None and language == "nso" else ()
+    return Speech(phones, clip, sound, source, notes)

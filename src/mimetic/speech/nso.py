@@ -6,13 +6,28 @@ whole model, one row per phone: its grapheme, label, IPA, duration and nearest E
 
 Sources and honest limits:
 
-* Phone values follow the usual descriptions of Sepedi (and, for ``d``, ``b``, ``g``, ``hl``,
-  ``tl``, ``kg``, ``bj``, A.E. Kotzé's notes in Radovan 2008, ch. 10, summarised in
-  ``research/seed-004-survey-lipsync.md`` §3.3). Textbooks call ``p t k ts tš tl`` ejective; many
-  speakers (Radovan's informant too) do not eject. Not checked against a speaker or a dictionary.
-* ``e`` and ``o`` are read as close-mid [e] [o]; the open [ɛ] [ɔ] only when written ``ê`` ``ô``
-  (the spelling usually leaves them unmarked, so unmarked text gets the close vowels). Tone is not
-  written and not modelled.
+* Phone values follow the Lwazi Pedi phone set (D.R. van Niekerk, Lwazi project, CSIR Meraka
+  Institute; the ``LwaziPediPhoneset`` of the ttslab Pedi voice, ``ttslab/voices/pedi_default.py``)
+  where it settles a question, and otherwise the usual descriptions of Sepedi (and, for ``b``, ``g``,
+  ``hl``, ``tl``, ``bj``, A.E. Kotzé's notes in Radovan 2008, ch. 10, summarised in
+  ``research/seed-004-survey-lipsync.md`` §3.3). Textbooks call ``p t k ts tš tl`` ejective (so
+  does Lwazi); many speakers (Radovan's informant too) do not eject. Not checked against a speaker
+  or a dictionary.
+* Choices where the sources differ, each a row of ``TABLE`` to change if a speaker disagrees:
+
+  - ``e`` and ``o`` unmarked are the open-mid [ɛ] [ɔ] (labels ``E_OPEN``, ``O_OPEN``): the Lwazi Pedi
+    phone set has only these two mid vowels, so the voices and recognisers built on it read every
+    unmarked e/o this way. Written ``ê`` ``ô`` they are the close-mid [e] [o] (``E``, ``O``); that is
+    how a user marks, word by word, the raised vowels that descriptions of Sepedi phonology give
+    (e.g. Poulos & Louwrens 1994, *A Linguistic Analysis of Northern Sotho*; not checked here
+    word by word), since the standard spelling leaves them unmarked. Tone is not written and not modelled.
+  - ``d`` is the retroflex lateral [ɭ] (Lwazi ``l_``), not Kotzé's retroflex flap [ɽ]: both put the
+    tongue tip up and back, which is what the viseme shows, so the choice changes the IPA only.
+  - ``kg`` is the velar affricate [kx] (Lwazi), not Kotzé's aspirated [kxʰ].
+  - ``fs`` ``fš`` are bilabial, [ɸs] [ɸʃ] (Lwazi ``_s`` ``_S``), not labiodental [fs] [fʃ]: the
+    lips come together and the lower lip does not touch the teeth, which the viseme shows.
+  - ``ps`` ``psh`` are one affricate each, [psʼ] [psʰ] (Lwazi ``ps_e`` ``ps_h``), like ``ts`` ``tsh``;
+    ``pš`` stays [pʃʼ] and ``pšh`` is [pʃʰ] (Lwazi ``pS_h``). Before, ``psh`` was read p·s·h.
 * ``v`` and ``z`` occur in loanwords only; ``c``, ``q``, ``x`` and digits are not read (spell
   numbers out in words).
 * Durations are approximations, not measurements (no published Sepedi duration table was at
@@ -22,6 +37,8 @@ Sources and honest limits:
   sequences (Ladefoged & Maddieson 1996, via Kotzé). Penultimate lengthening is not modelled.
 * ``TO_ARPABET`` maps each phone to its nearest English phones, only so that the English acoustic
   model of ``mimetic.speech.align`` can place it; it is a rough approximation.
+* espeak-ng has no Sepedi voice; ``SYNTHESIS_VOICE`` is the nearest one it has (Setswana, of the
+  same Sotho–Tswana group), fed ``for_synthesis(text)``, and ``SYNTHESIS_NOTE`` tells the user so.
 """
 
 from __future__ import annotations
@@ -35,25 +52,28 @@ from mimetic.speech.phones import PAUSE_MARKS, WordPhones
 # grapheme, label, IPA, duration (s), nearest ARPAbet phones
 TABLE = (
     ("a", "A", "a", 0.11, ("AA",)),
-    ("e", "E", "e", 0.10, ("EY",)),
-    ("ê", "E_OPEN", "ɛ", 0.11, ("EH",)),
+    ("ê", "E", "e", 0.10, ("EY",)),
+    ("e", "E_OPEN", "ɛ", 0.11, ("EH",)),
     ("i", "I", "i", 0.09, ("IY",)),
-    ("o", "O", "o", 0.10, ("OW",)),
-    ("ô", "O_OPEN", "ɔ", 0.11, ("AO",)),
+    ("ô", "O", "o", 0.10, ("OW",)),
+    ("o", "O_OPEN", "ɔ", 0.11, ("AO",)),
     ("u", "U", "u", 0.09, ("UW",)),
     ("p", "P", "pʼ", 0.07, ("P",)),
     ("ph", "PH", "pʰ", 0.09, ("P",)),
     ("b", "B", "β", 0.07, ("B",)),
     ("bj", "BJ", "β͡ʒ", 0.13, ("B", "ZH")),
+    ("ps", "PS", "psʼ", 0.12, ("P", "S")),
+    ("psh", "PS_H", "psʰ", 0.14, ("P", "S")),
     ("pš", "PSH", "pʃʼ", 0.13, ("P", "SH")),
+    ("pšh", "PSH_H", "pʃʰ", 0.15, ("P", "SH")),
     ("f", "F", "f", 0.09, ("F",)),
-    ("fs", "FS", "fs", 0.13, ("F", "S")),
-    ("fš", "FSH", "fʃ", 0.13, ("F", "SH")),
+    ("fs", "FS", "ɸs", 0.13, ("F", "S")),
+    ("fš", "FSH", "ɸʃ", 0.13, ("F", "SH")),
     ("v", "V", "v", 0.07, ("V",)),
     ("m", "M", "m", 0.07, ("M",)),
     ("t", "T", "tʼ", 0.07, ("T",)),
     ("th", "TH", "tʰ", 0.09, ("T",)),
-    ("d", "D", "ɽ", 0.06, ("D",)),
+    ("d", "D", "ɭ", 0.06, ("D",)),
     ("n", "N", "n", 0.07, ("N",)),
     ("l", "L", "l", 0.06, ("L",)),
     ("r", "R", "r", 0.06, ("R",)),
@@ -72,14 +92,14 @@ TABLE = (
     ("ny", "NY", "ɲ", 0.07, ("N", "Y")),
     ("k", "K", "kʼ", 0.07, ("K",)),
     ("kh", "KH", "kʰ", 0.09, ("K",)),
-    ("kg", "KG", "kxʰ", 0.12, ("K", "HH")),
+    ("kg", "KG", "kx", 0.11, ("K", "HH")),
     ("g", "G", "ɣ", 0.07, ("G",)),
     ("ng", "NG", "ŋ", 0.07, ("NG",)),
     ("w", "W", "w", 0.06, ("W",)),
     ("h", "H", "ɦ", 0.06, ("HH",)),
 )
 PHONES = {label: ipa for _, label, ipa, _, _ in TABLE}
-"""Phone label → IPA, for the 43 phones (7 vowels first)."""
+"""Phone label → IPA, for the 46 phones (7 vowels first)."""
 VOWELS = ("A", "E", "E_OPEN", "I", "O", "O_OPEN", "U")
 GRAPHEMES = {grapheme: label for grapheme, label, _, _, _ in TABLE}
 """Grapheme (lower case) → phone label."""
@@ -157,3 +177,21 @@ def nso_to_phonemes(text: str) -> tuple[WordPhones, ...]:
     if words and words[-1].is_pause:
         words.pop()
     return tuple(words)
+
+
+SYNTHESIS_VOICE = "tn"
+"""The espeak-ng voice that speaks Sepedi text: Setswana, the nearest voice espeak-ng has (it has
+none for Sepedi or Sesotho)."""
+SYNTHESIS_NOTE = (
+    "espeak-ng has no Northern Sotho voice; the speech is synthesized with its Setswana voice (tn), "
+    "the nearest it has, so some sounds are Setswana ones"
+)
+"""What a front end tells the user when Sepedi is synthesized with ``SYNTHESIS_VOICE``."""
+
+
+def for_synthesis(text: str) -> str:
+    """``text`` respelled for the Setswana voice: ``š`` as ``sh`` (the voice garbles ``š`` unless it
+    follows ``t``: "šela" → [s-ila], "shela" → [ʃela]) and ``ê ô`` as plain ``e o``."""
+    text = unicodedata.normalize("NFC", text)
+    text = re.sub(r"(?<![tT])šh?", "sh", re.sub(r"(?<![tT])Šh?", "Sh", text))
+    return text.translate(str.maketrans("êôÊÔ", "eoEO"))

@@ -281,13 +281,20 @@ def _channels(channels: Rig | Sequence[Channel]) -> tuple[Channel, ...]:
     return tuple(channels.channels if isinstance(channels, Rig) else channels)
 
 
+def _unknown(name: str) -> str:
+    """The message for a viseme map name that is neither built in nor a file."""
+    close = difflib.get_close_matches(str(name), BUILT_IN, n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    return (
+        f"unknown viseme map {name!r}; {hint}use a built-in map ({', '.join(BUILT_IN)}) or a map .json file"
+    )
+
+
 @cache
 def viseme_map(name: str) -> VisemeMap:
     """A built-in map (``BUILT_IN``: "en", "nso", "mpeg4"), read once."""
     if name not in BUILT_IN:
-        close = difflib.get_close_matches(str(name), BUILT_IN, n=1)
-        hint = f"did you mean {close[0]!r}? " if close else ""
-        raise SpeechError(f"unknown viseme map {name!r}; {hint}built-in maps are {', '.join(BUILT_IN)}")
+        raise SpeechError(_unknown(name))
     text = resources.files("mimetic.speech").joinpath(f"data/visemes_{name}.json").read_text("utf-8")
     visemes = None
     if name == "mpeg4":
@@ -310,7 +317,8 @@ def load_viseme_map(
         When given, every channel the map sets must be one of these (``phone_targets`` checks it
         anyway, when the map is used).
 
-    Raises ``SpeechError`` naming the viseme, phone or channel at fault: unknown keys, classes,
+    Raises ``SpeechError`` for a name that is no file and no ``.json`` (listing the built-in maps),
+    and naming the viseme, phone or channel at fault: unknown keys, classes,
     visemes or channels (with the valid names), weights that are not finite numbers,
     deformability outside [0, 1].
     """
@@ -318,6 +326,8 @@ def load_viseme_map(
         vmap = _parse(source, "viseme map", "user")
     else:
         path = Path(source)
+        if not path.exists() and path.suffix.lower() != ".json":
+            raise SpeechError(_unknown(os.fspath(source)))
         try:
             data = json.loads(read_text(path, SpeechError, "viseme map"))
         except json.JSONDecodeError as error:

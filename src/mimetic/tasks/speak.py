@@ -13,6 +13,10 @@ from mimetic.tasks.base import Progress, Result, Task, TaskError, announce, chec
 from mimetic.tasks.outputs import CLIPS, SCENES, VIDEOS
 
 TIMING_FILES = (".textgrid", ".csv", ".json")
+AUDIO_FILES = (".wav",)
+SILENT_VIDEO_NOTE = (
+    "the video is silent: text alone has no sound; add --synthesize (espeak-ng) or --audio for speech"
+)
 
 
 @dataclass(frozen=True)
@@ -43,17 +47,27 @@ class SpeakOptions(PlayOptions):
     timings_out: Path | None = option(
         None, "Also write the phone timings (.TextGrid, .csv or .json).", batch=False
     )
+    audio_out: Path | None = option(
+        None, "Keep the synthesized speech (with synthesize) as this WAV file.", batch=False
+    )
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.text is not None and self.text_file is not None:
             raise TaskError("give text or text_file, not both")
+        if self.audio_out is not None and not self.synthesize:
+            raise TaskError(
+                f"audio_out={str(self.audio_out)!r} keeps synthesized speech: give it together with "
+                "synthesize (recorded audio is already a file of its own)"
+            )
 
 
 def run(source: Path, output: Path, options: SpeakOptions, progress: Progress | None = None) -> Result:
     """Lip-sync the rig ``source`` (``speech.lipsync.lip_sync``) and write ``output`` as
     ``outputs.write_clip`` does (a video with the sound, a scene, a clip file); the phone timings
-    too when ``timings_out`` is given."""
+    too when ``timings_out`` is given, and the synthesized sound when ``audio_out`` is. The result
+    names only files that exist after the run, and its notes say when a video is silent or Sepedi
+    was synthesized with another language's voice."""
     from mimetic.errors import SpeechError
     from mimetic.inputs import read_text
     from mimetic.speech.lipsync import lip_sync
@@ -65,6 +79,8 @@ def run(source: Path, output: Path, options: SpeakOptions, progress: Progress | 
     check_output(output, CLIPS)
     if options.timings_out is not None:
         check_output(options.timings_out, TIMING_FILES, "timing file")
+    if options.audio_out is not None:
+        check_output(options.audio_out, AUDIO_FILES, "audio file")
     text = options.text
     if options.text_file is not None:
         text = read_text(options.text_file, SpeechError, "text")
@@ -103,12 +119,28 @@ def run(source: Path, output: Path, options: SpeakOptions, progress: Progress | 
                 progress=progress,
             )
         ]
+        if options.audio_out is not None:
+            written.append(_keep(speech.audio, options.audio_out))
     if options.timings_out is not None:
         written.append(save_timings(speech.timings, options.timings_out))
     clip = speech.clip
     phones = len(speech.timings.spoken())
     summary = f"{clip.n_frames} frames at {options.fps:g} fps, {phones} phones, {speech.source}"
-    return Result(tuple(Path(p) for p in written), summary)
+    notes = speech.notes
+    if output.suffix.lower() in VIDEOS and speech.audio is None:
+        notes = (*notes, SILENT_VIDEO_NOTE)
+    return Result(tuple(Path(p) for p in written), summary, notes=notes)
+
+
+def _keep(sound: Path, out: Path) -> Path:
+    """Copy the scratch WAV ``sound`` to ``out`` atomically."""
+    import shutil
+
+    from mimetic.atomic import atomic_path
+
+    with atomic_path(out) as tmp:
+        shutil.copyfile(sound, tmp)
+    return Path(out)
 
 
 TASK = Task(
