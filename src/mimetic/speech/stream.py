@@ -130,7 +130,8 @@ class _Resampler:
         return out
 
 
-def _decoder():
+def phone_decoder():
+    """A pocketsphinx decoder of English phones (allphone search), 16 kHz; MissingExtraError without it."""
     try:
         from pocketsphinx import Decoder, get_model_path
     except ImportError as error:
@@ -199,7 +200,7 @@ class LiveLipSync:
         self.vmap, self.fps, self.rate, self.lookahead_s = vmap, float(fps), rate, float(lookahead_s)
         self.jaw, self.lips = jaw, lips
         self.rest = np.array([c.default for c in self.channels])
-        self._decoder = _decoder()
+        self._decoder = phone_decoder()
         self._reset()
 
     def _reset(self) -> None:
@@ -241,7 +242,7 @@ class LiveLipSync:
 
     def _read(self, segments) -> None:
         phones = []
-        for s in segments:
+        for s in segments or ():  # None before the first frame is searched
             label = s.word if s.word in self.vmap.phones else SILENCE  # fillers (+NSN+ …) are pauses
             start_s, end_s = s.start_frame * FRAME_S, (s.end_frame + 1) * FRAME_S
             if end_s > start_s:
