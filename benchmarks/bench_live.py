@@ -1,6 +1,7 @@
-"""Benchmark live capture at 720p (``mimetic.capture.stream.LiveCapture``, ``mimetic view --capture``).
+"""Benchmark live capture at 720p (``mimetic.capture.stream.LiveCapture``, ``mimetic view --capture``)
+and live lip sync (``mimetic.speech.stream.LiveLipSync``, ``mimetic view --speak``).
 
-    python benchmarks/bench_live.py [--quick]
+    python benchmarks/bench_live.py [--quick] [--speech-only | --capture-only]
 
 The take: the default head (``build_rig(make_head())``) rendered at 1280 x 720 (``Renderer`` with
 ``face_camera(rig, aspect=16/9)``: the face fills the frame's height, as a webcam close to the
@@ -26,6 +27,20 @@ calibration, once, and how long a real-time capture then takes to catch up with 
 goal, from the issue: <= 33 ms per frame at 720p including tracking, judged on the median total
 (p90 beside it). The load average at the start and the share of the cores other processes used
 are printed: the machine is shared.
+
+Live lip sync (``--speech-only`` runs only this part): WAV files pushed through
+``LiveLipSync(rig, fps=30)`` in chunks as a microphone delivers them (``SPEECH_CHUNKS_S``) with
+look-aheads ``LOOKAHEADS_S`` (0.1 s is the default and the bound; the others show the trade-off).
+The utterances: ``ESPEAK`` sentences synthesized by espeak-ng and the five LibriVox readings in
+``/work/shared/data/speech/librivox`` (``--quick``: one of each). Per push, ``time.perf_counter``
+gives its compute; a real-time source is simulated on a virtual clock: chunk j (ending at audio
+time e_j) arrives at e_j, is processed once the previous push is done, and its frames come out when
+it is; a frame's latency is that moment less its own time in the audio (sound in → frame out: the
+look-ahead, the wait for the chunk, the queue and the compute). Agreement with the offline
+``lip_sync`` of the same audio and transcript (forced alignment): the correlation of ``jaw_open``
+over all frames, the mean absolute difference of the mouth channels, and the bilabial closures
+hit: of the offline timings' P B M, the share where some streamed frame within ``CLOSURE_NEAR_S``
+of the phone's centre is within ``CLOSURE_TOL`` (every lip and jaw channel) of its target.
 """
 
 from __future__ import annotations
@@ -159,12 +174,157 @@ def row(case: str, seconds: float, label: str, base: float) -> tuple[str, ...]:
     )
 
 
+# ---- live lip sync
+
+SPEECH_FPS = 30.0
+SPEECH_CHUNKS_S = (0.01, 0.02, 0.05)
+"""Chunk lengths of the simulated microphone, seconds."""
+LOOKAHEADS_S = (0.05, 0.1, 0.2)
+ESPEAK = ("the quick brown fox jumps over the lazy dog", "my mother paints maps by the bay")
+LIBRIVOX = Path("/work/shared/data/speech/librivox")
+CLOSURE_NEAR_S = 0.05
+CLOSURE_TOL = 0.05
+
+
+def utterances(folder: Path, quick: bool) -> list[tuple[str, Path, str]]:
+    """(name, WAV, transcript) of the espeak-ng sentences (synthesized into ``folder``) and LibriVox."""
+    from mimetic.speech.align import synthesize
+
+    out = []
+    for k, text in enumerate(ESPEAK[:1] if quick else ESPEAK):
+        out.append((f"espeak-ng {k + 1}", synthesize(text, folder / f"espeak{k}.wav"), text))
+    for wav in sorted(LIBRIVOX.glob("*.wav"))[: 1 if quick else None]:
+        out.append((f"librivox {wav.stem[-4:]}", wav, wav.with_suffix(".txt").read_text().strip()))
+    return out
+
+
+def stream_times(rig: Rig, wav: Path, chunk_s: float, lookahead_s: float):
+    """(values (f, c), push compute times (s), frame latencies (s)) of ``wav`` streamed in real time
+    on the virtual clock of the module docstring."""
+    from mimetic.speech.align import read_wav
+    from mimetic.speech.stream import LiveLipSync
+
+    samples, rate = read_wav(wav)
+    live = LiveLipSync(rig, fps=SPEECH_FPS, rate=rate, lookahead_s=lookahead_s)
+    n = round(chunk_s * rate)
+    values, computes, latencies, clock = [], [], [], 0.0
+    for i in range(0, len(samples) + n, n):
+        last = i >= len(samples)
+        out = live.flush() if last else live.push(samples[i : i + n])
+        arrival = min(i + n, len(samples)) / rate
+        clock = max(clock, arrival) + out.seconds
+        computes.append(out.seconds)
+        if not last:  # the flush's frames wait for the end of the audio, not for the look-ahead
+            latencies += list(clock - out.times_s)
+        values.append(out.values)
+        if last:
+            break
+    return np.concatenate(values), computes, latencies
+
+
+def agreement(rig: Rig, streamed: np.ndarray, speech) -> tuple[float, float, float]:
+    """(jaw_open correlation, mean |difference| of the lip and jaw channels, share of bilabials hit)."""
+    from mimetic.speech.visemes import channel_group, phone_targets, viseme_map
+
+    offline = speech.clip.values
+    n = min(len(offline), len(streamed))
+    j = rig.channel_index("jaw_open")
+    r = float(np.corrcoef(streamed[:n, j], offline[:n, j])[0, 1])
+    mouth = [k for k, c in enumerate(rig.channels) if channel_group(c.name) in ("lips", "jaw")]
+    mouth = [k for k in mouth if not rig.channels[k].name.startswith(("eyelid", "gaze", "head", "brow"))]
+    mad = float(np.abs(streamed[:n, mouth] - offline[:n, mouth]).mean())
+    bilabials = [p for p in speech.timings.phones if p.label in ("P", "B", "M")]
+    if not bilabials:
+        return r, mad, math.nan
+    targets = phone_targets(viseme_map("en"), [p.label for p in bilabials], rig)[:, mouth]
+    hits = 0
+    for p, target in zip(bilabials, targets, strict=True):
+        centre = (p.start_s + p.end_s) / 2
+        near = np.arange(
+            max(0, math.ceil((centre - CLOSURE_NEAR_S) * SPEECH_FPS)),
+            min(n, math.floor((centre + CLOSURE_NEAR_S) * SPEECH_FPS) + 1),
+        )
+        hits += bool(len(near)) and np.abs(streamed[near][:, mouth] - target).max(axis=1).min() <= CLOSURE_TOL
+    return r, mad, hits / len(bilabials)
+
+
+def speech_main(quick: bool) -> None:
+    from mimetic.speech.lipsync import lip_sync
+
+    rig = build_rig(make_head())
+    busy = Contention()
+    latency_rows, agree_rows, summary = [], [], {}
+    with tempfile.TemporaryDirectory() as folder:
+        said = utterances(Path(folder), quick)
+        offline = {name: lip_sync(rig, audio=wav, text=text, fps=SPEECH_FPS) for name, wav, text in said}
+        budget = f"{SPEECH_FPS:g} fps budget"
+        for chunk_s in SPEECH_CHUNKS_S[1:2] if quick else SPEECH_CHUNKS_S:
+            for lookahead_s in LOOKAHEADS_S:
+                computes, latencies, per_frame, scores = [], [], [], []
+                for name, wav, _ in said:
+                    values, c, lat = stream_times(rig, wav, chunk_s, lookahead_s)
+                    computes += c
+                    latencies += lat
+                    per_frame.append(sum(c) / len(values))
+                    scores.append(agreement(rig, values, offline[name]))
+                    if chunk_s == 0.02:
+                        agree_rows.append((name, lookahead_s, *scores[-1]))
+                case = f"chunk {chunk_s * 1e3:g} ms, look-ahead {lookahead_s * 1e3:g} ms"
+                med, p95 = statistics.median(latencies), float(np.percentile(latencies, 95))
+                summary[(chunk_s, lookahead_s)] = (
+                    med,
+                    p95,
+                    statistics.median(computes),
+                    np.mean(scores, axis=0),
+                )
+                latency_rows.append(
+                    row(f"{case}: latency, median", med, "look-ahead + chunk", lookahead_s + chunk_s)
+                )
+                latency_rows.append(
+                    row(f"{case}: latency, p95", p95, "look-ahead + chunk", lookahead_s + chunk_s)
+                )
+                latency_rows.append(
+                    row(f"{case}: compute per push, median", statistics.median(computes), "chunk", chunk_s)
+                )
+                latency_rows.append(
+                    row(f"{case}: compute per frame", statistics.median(per_frame), budget, 1 / SPEECH_FPS)
+                )
+    others = busy.note()
+    print(f"live lip sync on the default head ({len(rig.channels)} channels) at {SPEECH_FPS:g} fps, "
+          f"{len(said)} utterances; {others or 'load unknown'}")  # fmt: skip
+    print("latency = sound in → its frame out on a real-time virtual clock; ratio = time / baseline")
+    table(("case", "median time", "throughput", "baseline", "ratio"), latency_rows)
+    print("agreement with the offline lip_sync (forced alignment to the transcript), chunks of 20 ms")
+    table(
+        ("utterance", "look-ahead", "jaw_open r", "mouth |diff|", "bilabials hit"),
+        [(n, f"{la * 1e3:g} ms", f"{r:.3f}", f"{d:.3f}", f"{h:.0%}") for n, la, r, d, h in agree_rows],
+    )
+    for (chunk_s, lookahead_s), (med, p95, comp, mean) in summary.items():
+        if lookahead_s == 0.1:
+            print(
+                f"look-ahead 100 ms, chunks of {chunk_s * 1e3:g} ms: latency median {med * 1e3:.0f} ms, p95 "
+                f"{p95 * 1e3:.0f} ms, compute per push {comp * 1e3:.1f} ms; mean jaw_open r {mean[0]:.3f}, "
+                f"bilabials hit {mean[2]:.0%}"
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     quick = f"a {QUICK_TAKE_S:g} s take instead of {TAKE_S:g} s"
     parser.add_argument("--quick", action="store_true", help=quick)
+    only = parser.add_mutually_exclusive_group()
+    only.add_argument("--speech-only", action="store_true", help="only the live lip sync")
+    only.add_argument("--capture-only", action="store_true", help="only the live capture")
     args = parser.parse_args()
     print(f"load average at the start {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores)")
+    if not args.capture_only:
+        speech_main(quick=args.quick)
+    if not args.speech_only:
+        capture_main(args.quick)
+
+
+def capture_main(quick: bool) -> None:
+    args = argparse.Namespace(quick=quick)
     n_frames = round((QUICK_TAKE_S if args.quick else TAKE_S) * FPS)
     # 1. the rig, its basis and the take
     begin = time.perf_counter()

@@ -39,6 +39,14 @@ def view(
         "calibrate (hold a neutral face). A camera device such as /dev/video0 is passed on the same "
         "way (untested: no camera was at hand). Needs the [track] extra.",
     ),
+    speak: Path | None = typer.Option(
+        None,
+        "--speak",
+        metavar="AUDIO",
+        help="Lip-sync a WAV file on the rig as it arrives, at its pace, standing in for a microphone "
+        "(English phones recognised live, 0.1 s look-ahead; the sound is not played). Needs the "
+        "[speech] extra.",
+    ),
 ) -> None:
     """Open RIG in a local web page: sliders, expressions, keys and playback, landmark picking.
 
@@ -51,16 +59,21 @@ def view(
       mimetic view head.mrig --clip speech.clip.json --audio speech.wav --port 8081
       mimetic view scan.obj --landmarks scan.json
       mimetic view head.mrig --capture take.mp4
+      mimetic view head.mrig --speak hello.wav
     """
-    from mimetic.view.web import PREPARE_NOTE, check_capture, start
+    from mimetic.view.web import PREPARE_NOTE, check_capture, check_speak, start
 
     if not source.is_file():  # nothing to show: fail before serving a page
         raise MimeticError(f"{source}: no such file")
     for given, option in ((clip, "--clip"), (audio, "--audio")):
         if given is not None and not given.is_file():
             raise MimeticError(f"{option} {given}: no such file")
+    if capture is not None and speak is not None:
+        raise MimeticError("give --capture or --speak, not both: each drives the face live")
     if capture is not None:
         check_capture(source, capture)
+    if speak is not None:
+        check_speak(source, speak)
     if engine in PREPARE_NOTE:
         stderr.print(f"preparing the {engine} engine: {PREPARE_NOTE[engine]}, once")
     viewer = start(
@@ -72,6 +85,7 @@ def view(
         audio=audio,
         landmarks_out=landmarks,
         capture=capture,
+        speak=speak,
     )
     if viewer.error:  # a rig that cannot be read: said here and in the page, which stays up to say it
         stderr.print(Text.assemble(("error: ", "bold red"), viewer.error))
@@ -89,6 +103,6 @@ def view(
                     stderr.print(Text.assemble(("error: ", "bold red"), status.error))
                     stderr.print("the page shows the error too; Ctrl-C to stop")
                 else:
-                    stderr.print(f"live capture {status.text()}")
+                    stderr.print(f"live {'lip sync' if speak else 'capture'} {status.text()}")
     finally:
         viewer.stop()

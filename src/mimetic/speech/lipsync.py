@@ -153,3 +153,47 @@ def lip_sync(
         clip = add_eye_motion(clip, rig, seed=seed)
     notes = (nso.SYNTHESIS_NOTE,) if synthesize_to is not None and language == "nso" else ()
     return Speech(phones, clip, sound, source, notes)
+
+
+CLOSURE_EASE_S = 0.06
+"""Around a bilabial or labiodental phone, a held expression's mouth comes back over this long."""
+
+
+def under_expression(
+    clip: Clip, timings: PhoneTimings, rig: Rig, pose: np.ndarray, *, visemes: VisemeMap | str | None = None
+) -> Clip:
+    """``clip`` played over a held expression ``pose`` (c,) in ``rig.channel_names`` order (e.g.
+    ``animate.expressions.blend(rig, [("joy", 0.4)])``), with the closures kept.
+
+    The expression's offset from rest, ``pose - rest``, is added to every frame. On the channels a
+    closure sets (those the map's bilabial and labiodental targets move from rest: the jaw, the
+    orbicularis oris, the mentalis …) it is faded out by a closure weight w(t): 1 during each
+    bilabial and labiodental phone of ``timings``, easing back to 0 over ``CLOSURE_EASE_S`` on either
+    side (raised cosine), so P B M F V close the lips as they do without the expression. The other
+    channels (a smile's zygomatics, the brows, the lids) keep it throughout: a smile does not flicker
+    at each /m/. On the default head with the wire engine, joy:0.4 alone parts the lips by 1.5 % of
+    the head's size; at the bilabials of "my mom bought a map by the pub" the gap is 0.33 % with it
+    and 0.38 % without. Values
+    are clipped into their ranges; the clip keeps its channels, frames and fps.
+    """
+    from mimetic.rig.activations import check_activations
+    from mimetic.speech.coarticulation import CLOSURE_CLASSES
+    from mimetic.speech.visemes import phone_targets, viseme_map
+
+    vmap = viseme_map(timings.language) if visemes is None else visemes
+    vmap = viseme_map(vmap) if isinstance(vmap, str) else vmap
+    channels = [rig.channels[rig.channel_index(name)] for name in clip.channels]
+    rest = np.array([c.default for c in channels])
+    order = [rig.channel_index(name) for name in clip.channels]
+    offset = np.asarray(pose, dtype=np.float64)[order] - rest  # (c,)
+    closing = tuple(label for label, entry in vmap.phones.items() if entry.kind in CLOSURE_CLASSES)
+    targets = phone_targets(vmap, closing, channels)  # (p, c)
+    driven = (np.abs(targets - rest) > 1e-9).any(axis=0)  # (c,) the channels a closure sets
+    t = np.arange(clip.n_frames) / clip.fps  # (f,)
+    w = np.zeros(clip.n_frames)
+    for phone in timings.phones:
+        if phone.label in vmap.phones and vmap.phone(phone.label).kind in CLOSURE_CLASSES:
+            outside = np.maximum(np.maximum(phone.start_s - t, t - phone.end_s), 0.0)  # s beyond the phone
+            w = np.maximum(w, np.cos(0.5 * np.pi * np.clip(outside / CLOSURE_EASE_S, 0.0, 1.0)) ** 2)
+    values = clip.values + offset * np.where(driven, 1.0 - w[:, None], 1.0)
+    return Clip(clip.channels, check_activations(channels, values, clip=True), clip.fps)

@@ -19,6 +19,13 @@ SILENT_VIDEO_NOTE = (
 )
 
 
+def held_expressions(items) -> tuple[tuple[str, float], ...]:
+    """``NAME``, ``NAME:WEIGHT`` or ``NAME=WEIGHT`` items → ((name, weight), ...)."""
+    from mimetic.tasks.parsing import weights
+
+    return weights([item.replace(":", "=", 1) if "=" not in item else item for item in items])
+
+
 @dataclass(frozen=True)
 class SpeakOptions(PlayOptions):
     """What is said and how (see ``option`` for the fields' metadata)."""
@@ -44,6 +51,14 @@ class SpeakOptions(PlayOptions):
     eyes: bool = option(True, "Add blinks and small gaze saccades.")
     seed: int = option(0, "Seed of the blinks and saccades.")
     baseline: bool = option(False, "Linear interpolation between visemes instead of coarticulation.")
+    expressions: tuple[tuple[str, float], ...] = option(
+        (),
+        "Hold an expression under the lip sync (repeatable); bilabials still close the lips.",
+        flag="--expr",
+        metavar="NAME[:WEIGHT]",
+        parse=held_expressions,
+        cli_type=list[str],
+    )
     timings_out: Path | None = option(
         None, "Also write the phone timings (.TextGrid, .csv or .json).", batch=False
     )
@@ -108,10 +123,17 @@ def run(source: Path, output: Path, options: SpeakOptions, progress: Progress | 
             baseline=options.baseline,
             force=options.force,
         )
+        clip = speech.clip
+        if options.expressions:
+            from mimetic.animate.expressions import blend
+            from mimetic.speech.lipsync import under_expression
+
+            pose = blend(prepared.rig, options.expressions)
+            clip = under_expression(clip, speech.timings, prepared.rig, pose, visemes=visemes)
         written = [
             write_clip(
                 prepared,
-                speech.clip,
+                clip,
                 output,
                 engine=options.engine,
                 size=options.size,
@@ -123,7 +145,6 @@ def run(source: Path, output: Path, options: SpeakOptions, progress: Progress | 
             written.append(_keep(speech.audio, options.audio_out))
     if options.timings_out is not None:
         written.append(save_timings(speech.timings, options.timings_out))
-    clip = speech.clip
     phones = len(speech.timings.spoken())
     summary = f"{clip.n_frames} frames at {options.fps:g} fps, {phones} phones, {speech.source}"
     notes = speech.notes

@@ -648,3 +648,55 @@ class LivePlayback:
             )
         s = self.status
         self._update(LiveStatus("finished", count, s.time_s, s.solve_ms, s.behind_s))
+
+
+# --------------------------------------------------------------------------- live lip sync
+
+
+def check_speech_source(source: str | os.PathLike[str]) -> None:
+    """Fail now, before anything is served, when ``source`` cannot be lip-synced live: pocketsphinx
+    (extra [speech]) missing, or not a readable PCM WAV file (``SpeechError``)."""
+    from mimetic.speech.align import read_wav
+    from mimetic.speech.stream import phone_decoder
+
+    read_wav(source)
+    phone_decoder()
+
+
+class SpeechPlayback(LivePlayback):
+    """A WAV file lip-synced on a rig as it arrives, standing in for a microphone (extra [speech]).
+
+    The thread pushes the file through ``speech.stream.live_lip_sync(realtime=True)`` in chunks of
+    ``chunk_s`` at the sound's pace (the sound is not played); each frame the lip sync makes final
+    goes to ``show`` (time_s, values (c,) in ``rig.channel_names`` order), skipped as
+    ``LivePlayback`` skips frames while behind. The status's ``solve_ms`` is the median compute per
+    frame; it ends "finished", or "failed" when the file cannot be read. Same parameters and
+    callbacks as ``LivePlayback``; ``**options`` go to ``LiveLipSync`` (``fps``, ``lookahead_s`` …).
+    """
+
+    def _play(self) -> None:
+        from mimetic.speech.stream import live_lip_sync
+
+        solves: deque[float] = deque(maxlen=LIVE_SOLVE_WINDOW)  # seconds per frame
+        count, begin, shown = 0, None, -math.inf  # begin: perf_counter at the sound's time 0
+        unshown: tuple[float, np.ndarray] | None = None
+        self._update(LiveStatus("live"))
+        for out, heard_s in live_lip_sync(self.rig, self.source, realtime=True, **self.options):
+            self._check_stop()
+            if len(out.values):
+                solves.append(out.seconds / len(out.values))
+            now = time.perf_counter()
+            begin = now - heard_s if begin is None else begin  # the first chunk: the recogniser is loaded
+            behind_s = max(0.0, now - begin - heard_s)
+            for time_s, values in zip(out.times_s, out.values, strict=True):
+                count += 1
+                unshown = (float(time_s), values)
+                if behind_s <= LIVE_LATE_S or now - shown >= 1.0 / LIVE_CATCH_UP_FPS:
+                    self._emit(self.show, *unshown)
+                    unshown, shown = None, now
+            solve_ms = 1e3 * float(np.median(solves)) if solves else math.nan
+            self._update(LiveStatus("live", count, heard_s, solve_ms, behind_s))
+        if unshown is not None:
+            self._emit(self.show, *unshown)
+        s = self.status
+        self._update(LiveStatus("finished", count, s.time_s, s.solve_ms, s.behind_s))

@@ -7,7 +7,8 @@ and ARKit sliders, the expression library with an intensity, a timeline with key
 writes a landmarks file for ``mimetic rig``, and GLB / PNG / clip JSON downloads. A plain mesh
 (.obj .ply .stl .glb) opens for landmark picking only. With ``capture`` (``mimetic view --capture``)
 a video's (or a camera's) face plays on the rig as it arrives, solved frame by frame
-(``session.LivePlayback``), under a status line.
+(``session.LivePlayback``), under a status line; with ``speak`` (``mimetic view --speak``) a WAV
+file, standing in for a microphone, is lip-synced live the same way (``session.SpeechPlayback``).
 
 Why viser: its browser client is one bundled file that works offline, and a vertex update reaches
 the browser in ~19 ms (../shared/research §D); gradio needs the network and resends whole meshes,
@@ -170,6 +171,16 @@ def check_capture(source: Path, capture: str | os.PathLike[str]) -> None:
     check_live_source(capture)
 
 
+def check_speak(source: Path, speak: str | os.PathLike[str]) -> None:
+    """Fail before serving when ``speak`` cannot be lip-synced live on ``source``: a mesh rather than a
+    rig, or ``session.check_speech_source``'s reasons (pocketsphinx missing, not a PCM WAV file)."""
+    from mimetic.view.session import check_speech_source
+
+    if Path(source).suffix.lower() in MESH_SUFFIXES:
+        raise ViewError(f"--speak plays on a rig, and {Path(source).name} is a mesh; pass a .mrig rig")
+    check_speech_source(speak)
+
+
 def _viser():
     try:
         import viser
@@ -212,6 +223,7 @@ class Viewer:
         landmarks_out: Path | None = None,
         capture: str | os.PathLike[str] | None = None,
         capture_options: dict | None = None,
+        speak: str | os.PathLike[str] | None = None,
     ) -> None:
         self.server = server
         self.source = Path(source)
@@ -231,7 +243,12 @@ class Viewer:
         self.vertices: np.ndarray | None = None
         self.pose: np.ndarray | None = None
         self.audio: tuple[bytes, str] | None = None  # the timeline's sound and its MIME type
+        if capture is not None and speak is not None:
+            raise ViewError("give --capture or --speak, not both: each drives the face live")
         self.capture = None if capture is None else str(capture)
+        self.speak = speak is not None  # ``capture`` is then a WAV file lip-synced live
+        if speak is not None:
+            self.capture = str(speak)
         self.live = None  # the session.LivePlayback of ``capture``
         self.live_text = None
         self._live_posed = False  # a live frame has posed the face
@@ -641,11 +658,12 @@ class Viewer:
     # ---- live capture
 
     def _live_line(self, text: str) -> str:
-        return f"**Live capture** of `{Path(self.capture).name}`: {_escape(text)}"
+        what = "Live lip sync" if self.speak else "Live capture"
+        return f"**{what}** of `{Path(self.capture).name}`: {_escape(text)}"
 
     def _start_live(self, options: dict) -> None:
         """Play ``self.capture`` on the rig as it arrives (``session.LivePlayback``)."""
-        from mimetic.view.session import LivePlayback
+        from mimetic.view.session import LivePlayback, SpeechPlayback
 
         if self.session is None:
             self.live_text.content = self._live_line(
@@ -653,7 +671,7 @@ class Viewer:
             )
             return
         self._playing.clear()  # the timeline stops: the capture drives the face
-        self.live = LivePlayback(
+        self.live = (SpeechPlayback if self.speak else LivePlayback)(
             self.rig, self.capture, show=self._show_live, report=self._live_reported, **options
         )
         self.live.start()
@@ -912,6 +930,7 @@ def start(
     landmarks_out: Path | None = None,
     capture: str | os.PathLike[str] | None = None,
     capture_options: dict | None = None,
+    speak: str | os.PathLike[str] | None = None,
 ) -> Viewer:
     """Start the viewer's server (in background threads) and build the page; ``viewer.stop()`` ends it
     (and ``capture``'s thread). ViewError when the port is taken; a rig that cannot be read shows its
@@ -934,6 +953,7 @@ def start(
             landmarks_out=landmarks_out,
             capture=capture,
             capture_options=capture_options,
+            speak=speak,
         )
     except BaseException:
         server.stop()

@@ -1,0 +1,58 @@
+"""Expressions held under the lip sync (``lipsync.under_expression``, ``mimetic speak --expr``): the
+smile stays, the bilabials still close the lips (measured on the wire engine's geometry)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mimetic.animate.expressions import blend
+from mimetic.speech.lipsync import lip_sync, under_expression
+from mimetic.speech.visemes import viseme_map
+from mimetic.tasks.speak import SpeakOptions, held_expressions
+
+SENTENCE = "my mom bought a map by the pub"
+FPS = 30.0
+CLOSED_REL = 0.005
+"""Inner-lip gap at a closure, fraction of head size (0.33 % measured on the default head with joy:0.4)."""
+
+
+def lip_gap(rig, engine, values) -> float:
+    """Distance between the inner upper and lower lip midpoints on the deformed mesh (rig units)."""
+    v = engine.deform(values)
+    points = [rig.landmarks[n] for n in ("upper_lip_inner", "lower_lip_inner")]
+    upper, lower = np.einsum(
+        "kj,kjd->kd", np.array([p.bary for p in points]), v[rig.mesh.faces[[p.face for p in points]]]
+    )
+    return float(np.linalg.norm(upper - lower))
+
+
+def test_bilabials_close_the_lips_under_joy(rig, engine):
+    speech = lip_sync(rig, text=SENTENCE, fps=FPS, eyes=False)
+    pose = blend(rig, [("joy", 0.4)])
+    copy = speech.clip.values.copy()
+    joy = under_expression(speech.clip, speech.timings, rig, pose)
+    assert joy.channels == speech.clip.channels and joy.values.shape == speech.clip.values.shape
+    assert joy.values.dtype == np.float64
+    np.testing.assert_array_equal(speech.clip.values, copy)
+    closures = [p for p in speech.timings.phones if p.label in ("P", "B", "M")]
+    share = {label: viseme_map("en").phone(label).closure for label in ("P", "B", "M")}
+    frames = [round((p.start_s + share[p.label] * p.duration_s / 2) * FPS) for p in closures]  # mid-closure
+    assert len(frames) == 9
+    for k in frames:
+        assert lip_gap(rig, engine, joy.values[k]) < CLOSED_REL * rig.scale, k
+    assert lip_gap(rig, engine, pose) > 2 * CLOSED_REL * rig.scale  # joy alone parts the lips
+    # the smile is held through the closures and between them
+    smile = rig.channel_index("zygomatic_major_L")
+    assert (joy.values[:, smile] >= pose[smile] - 1e-9).all()
+
+
+def test_speak_takes_expressions_as_name_colon_weight():
+    assert held_expressions(["joy:0.4", "surprise=0.2", "anger"]) == (
+        ("joy", 0.4),
+        ("surprise", 0.2),
+        ("anger", 1.0),
+    )
+    with pytest.raises(ValueError):
+        held_expressions(["joy:lots"])
+    assert SpeakOptions(text="hi", expressions=(("joy", 0.4),)).expressions == (("joy", 0.4),)
