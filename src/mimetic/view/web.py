@@ -76,6 +76,25 @@ default head and 14 s on ICT; tissue 29 s and 100 s)."""
 SLIDER_STEPS = 200
 """Steps across a slider's range."""
 
+KEY_GUARD_JS = """
+if (!window.mimeticKeyGuard) {
+  window.mimeticKeyGuard = true;
+  const cameraKeys = new Set(["KeyW", "KeyA", "KeyS", "KeyD", "KeyQ", "KeyE",
+                              "ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight"]);
+  document.body.addEventListener("keydown", (event) => {
+    const target = event.target;
+    if (cameraKeys.has(event.code) && target instanceof Element && target.closest('[role="slider"]')) {
+      event.stopPropagation();
+    }
+  });
+}
+"""
+"""Keeps keys pressed on a focused slider from moving the camera. viser's camera listens for the
+arrow keys (and WASDQE) on ``document`` and skips text fields only, but a Mantine slider's
+focusable thumb is a ``div role=slider``, so an arrow key moved the slider and turned the head.
+This listener on ``body`` runs after React's (on ``#root``, inside it) has moved the slider and
+stops the key before it reaches ``document``."""
+
 
 class ViewError(MimeticError, RuntimeError):
     """The viewer cannot start as asked (port in use, extra missing)."""
@@ -176,6 +195,14 @@ def _viser():
     except ImportError as error:
         raise MissingExtraError(f"the viewer needs viser ({error}); pip install 'mimetic[view]'") from None
     return viser
+
+
+def run_javascript(server, source: str) -> None:
+    """Run ``source`` in every page of ``server``, now and on every page opened later (viser's
+    message for it is kept in the buffer each new client replays; viser has no public call)."""
+    from viser._messages import RunJavascriptMessage
+
+    server._websock_server.queue_message(RunJavascriptMessage(source=source))
 
 
 def _escape(text: str) -> str:
@@ -289,6 +316,7 @@ class Viewer:
     def _build(self) -> None:
         gui, scene = self.server.gui, self.server.scene
         scene.set_up_direction("+y")
+        run_javascript(self.server, KEY_GUARD_JS)
         self.head = scene.add_frame("/head", show_axes=False)
         self._add_meshes()
         self.server.on_client_connect(self._frame_camera)
