@@ -147,7 +147,9 @@ def test_render_eye_pattern_and_films_agree_between_gl_and_cpu(gl_renderer):
     cpu = rasterize(mesh, camera, size=(160, 120))
     difference = np.abs(gl.astype(int) - cpu.astype(int))
     assert difference.mean() < 3.0, f"mean abs diff {difference.mean():.2f}/255"
-    assert (difference.max(axis=2) > 8).mean() < 0.01
+    # GL blends the edges of the pupil, iris and limbal ring over a pixel; the CPU rasterizer
+    # draws them hard: those edge pixels (1.3 % of this picture) may differ, nothing else
+    assert (difference.max(axis=2) > 8).mean() < 0.02
 
 
 def test_render_painted_eyeball_keeps_its_own_colours(gl_renderer):
@@ -388,3 +390,23 @@ def test_render_ict_obj_with_materials_uses_them(gl_renderer, ict, tmp_path):
     sclera = look.colors[mesh.part_vertices("M_ScleraLeft")]
     np.testing.assert_allclose(sclera, np.tile([0.95, 0.95, 0.93], (len(sclera), 1)), atol=1e-6)
     assert not np.allclose(SCLERA, (0.95, 0.95, 0.93)) and not np.allclose(IRIS, (0.15, 0.3, 0.6))
+
+
+def test_render_painted_iris_edges_are_antialiased_not_stair_stepped(gl_renderer):
+    """Along a row from the pupil's centre to the sclera, each edge (pupil, limbus, sclera) passes
+    through an in-between shade: no one-pixel step makes most of the change across its edge (a
+    hard edge does: 0.97 to 1 of it, measured before the shader blended the bands)."""
+    mesh = mini_head()
+    size = 192
+    image = gl_renderer.render(mesh, EYE_CAMERA, size=size, msaa=4).astype(float)
+    assert image.shape == (size, size, 3)
+    x, y = project(np.stack([on_eye(0.0), on_eye(50.0)]), EYE_CAMERA, size).pixels.T
+    row = image[int(y[0]), int(x[0]) : int(x[1]) + 1].mean(axis=1)  # (k,) pupil centre → sclera
+    steps = np.diff(row)
+    edges = np.flatnonzero(np.abs(steps) > 10)
+    edges = edges[(edges >= 2) & (edges < len(steps) - 2)]
+    assert len(edges) >= 3, f"the row {row.round()} does not cross a pupil, an iris and a sclera"
+    for i in edges:
+        across = row[i + 3] - row[i - 2]  # the change across the edge, two pixels either side
+        share = steps[i] / across
+        assert share < 0.8, f"a {steps[i]:.0f} step of {across:.0f} at pixel {i} of {row.round()}"

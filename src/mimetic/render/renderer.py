@@ -61,7 +61,8 @@ void main() {
 }
 """
 
-# Mirrors raster.shade and appearance.eye_albedo; keep them in step. v_look is (gaze_cos, cover).
+# Mirrors raster.shade and appearance.eye_albedo (whose hard band edges it antialiases); keep them
+# in step. v_look is (gaze_cos, cover).
 _FRAGMENT_SHADER = """
 #version 330
 uniform vec3 cos_iris;      // cos of the iris, limbus and pupil angles
@@ -69,6 +70,8 @@ uniform float limbus_shade;
 uniform vec3 pupil;
 uniform float not_eye;
 uniform vec3 light_dir;
+uniform vec3 fill_dir;
+uniform float fill;
 uniform float ambient;
 uniform float diffuse;
 uniform float specular;
@@ -87,9 +90,13 @@ void main() {
     if (v_look.y < 0.5) discard;
     vec3 albedo = v_col;
     if (v_look.x > 0.5 * not_eye) {
-        if (v_look.x >= cos_iris.z) albedo = pupil;
-        else if (v_look.x >= cos_iris.y) albedo = v_iris;
-        else if (v_look.x >= cos_iris.x) albedo = limbus_shade * v_iris;
+        // eye_albedo's bands, each edge blended over about a pixel (fwidth: gaze_cos's change
+        // per pixel) so the iris and pupil are round, not stair-stepped (MSAA smooths only
+        // triangle edges, and these edges cross triangles)
+        float w = max(fwidth(v_look.x), 1e-7);
+        albedo = mix(albedo, limbus_shade * v_iris, smoothstep(cos_iris.x - w, cos_iris.x + w, v_look.x));
+        albedo = mix(albedo, v_iris, smoothstep(cos_iris.y - w, cos_iris.y + w, v_look.x));
+        albedo = mix(albedo, pupil, smoothstep(cos_iris.z - w, cos_iris.z + w, v_look.x));
     }
     vec3 n;
     if (length(v_nrm) < 1e-12) {
@@ -103,7 +110,8 @@ void main() {
     vec3 h = normalize(light_dir + v);
     float ndl = max(dot(n, light_dir), 0.0);
     float spec = ndl > 0.0 ? specular * pow(max(dot(n, h), 0.0), shininess) : 0.0;
-    vec3 c = albedo * (ambient + diffuse * ndl) + vec3(spec);
+    float ndf = max(dot(n, fill_dir), 0.0);
+    vec3 c = albedo * (ambient + diffuse * ndl + fill * ndf) + vec3(spec);
     if (!gl_FrontFacing) c *= back_shade;
     if (wire_width > 0.0) {
         vec3 d = v_bary / max(fwidth(v_bary), vec3(1e-12));
@@ -189,6 +197,8 @@ class Renderer:
             with ctx:
                 prog = ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
                 prog["light_dir"].value = tuple(raster.LIGHT_DIR_VIEW)
+                prog["fill_dir"].value = tuple(raster.FILL_DIR_VIEW)
+                prog["fill"].value = raster.FILL
                 prog["ambient"].value = raster.AMBIENT
                 prog["diffuse"].value = raster.DIFFUSE
                 prog["specular"].value = raster.SPECULAR
