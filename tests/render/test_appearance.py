@@ -14,7 +14,7 @@ from trimesh.visual.material import PBRMaterial
 from mimetic.mesh.io import load_mesh
 from mimetic.mesh.model import Material, Mesh
 from mimetic.render import Camera, project, rasterize
-from mimetic.render.appearance import IRIS, LASH, NOT_EYE, SCLERA, part_kind, surface
+from mimetic.render.appearance import CAVITY, IRIS, LASH, NOT_EYE, SCLERA, part_kind, surface
 from mimetic.render.raster import ALBEDO
 from mimetic.testing import load_ict, require_shared_data
 
@@ -208,6 +208,9 @@ def test_render_rejects_a_surface_made_for_another_mesh(gl_renderer, sphere):
         ("Eye socket left", None, None),
         ("eyebrow_L", None, None),
         ("teeth_upper", None, "teeth"),
+        ("Mouth socket", None, "cavity"),
+        ("x", "M_MouthCavity", "cavity"),
+        ("mouth_corner_L", None, None),
         ("skin", None, None),
     ],
 )
@@ -410,3 +413,16 @@ def test_render_painted_iris_edges_are_antialiased_not_stair_stepped(gl_renderer
         across = row[i + 3] - row[i - 2]  # the change across the edge, two pixels either side
         share = steps[i] / across
         assert share < 0.8, f"a {steps[i]:.0f} step of {across:.0f} at pixel {i} of {row.round()}"
+
+
+def test_surface_colours_an_uncoloured_mouth_socket_dark_and_keeps_a_coloured_one(sphere):
+    faces = np.arange(sphere.n_faces)
+    half = {"skin": faces[: len(faces) // 2], "Mouth socket": faces[len(faces) // 2 :]}
+    bare = Mesh(sphere.vertices, sphere.faces, half)
+    look = surface(bare, ALBEDO)
+    socket = np.unique(sphere.faces[half["Mouth socket"]])
+    skin_only = np.setdiff1d(np.unique(sphere.faces[half["skin"]]), socket)
+    np.testing.assert_allclose(look.colors[socket], np.tile(CAVITY, (len(socket), 1)))
+    np.testing.assert_allclose(look.colors[skin_only], np.tile(ALBEDO, (len(skin_only), 1)))
+    painted = Mesh(sphere.vertices, sphere.faces, half, np.full((sphere.n_vertices, 3), 0.5))
+    np.testing.assert_array_equal(surface(painted, ALBEDO).colors, painted.colors)  # the file's colours stay

@@ -18,7 +18,8 @@ renderers draw exactly that ``Surface``, so they agree. The rules, in order:
    (not drawn); one growing out in front of it is a lash. Parts named as lashes are lashes too.
    Lashes are drawn dark (``LASH``, unless the file colours them) and only over the part of the
    card nearest the eyeball (``LASH_DRAWN_FRACTION``), as an alpha-textured card looks. Parts named
-   as teeth are ``TOOTH`` where the file gives no colour.
+   as teeth are ``TOOTH``, and parts named as the mouth's cavity (``CAVITY_WORDS``) ``CAVITY``,
+   where the file gives no colour.
 5. An eyeball piece of one flat colour (no colour, or a light one from the file) gets a pupil, an
    iris with a darker rim, and a sclera (the file's light colour, else ``SCLERA``), around its gaze
    axis: world +Z (the face looks down +Z) through the centre of the sphere fitted to the piece,
@@ -49,6 +50,8 @@ LIMBUS_SHADE = 0.45
 """The limbal ring, the iris's outer rim, is the iris colour times this."""
 PUPIL = (0.03, 0.03, 0.03)
 TOOTH = (0.93, 0.91, 0.83)
+CAVITY = (0.2, 0.05, 0.05)
+"""The inside of the mouth: dark red, so an open mouth reads as a hole, not as skin."""
 LASH = (0.08, 0.06, 0.05)
 IRIS_ANGLE_RAD = 0.45
 """Angular radius of the iris seen from the eyeball's centre (a 5.2 mm iris radius on a 12 mm
@@ -62,6 +65,7 @@ FILM_WORDS = r"occlusion|lacrimal|tear|cornea|film|meniscus|wet|eye[\W_]*blend"
 LASH_WORDS = r"lash"
 IRIS_WORDS = r"iris|pupil"
 TEETH_WORDS = r"teeth|tooth"
+CAVITY_WORDS = r"mouth[\W_]*(socket|cavity|bag)|oral[\W_]*cavity"
 EYE_WORDS = r"eye|sclera|iris|pupil"
 NOT_EYE_WORDS = r"lid|brow|socket|bag|shadow|liner"
 FLAT_COLOR_TOL = 0.02
@@ -131,7 +135,8 @@ class Surface:
 
 
 def part_kind(name: str, material_name: str | None = None) -> str | None:
-    """A part's kind from its name and its material's name: "film", "lash", "teeth", "eye" or None."""
+    """A part's kind from its name and its material's name: "film", "lash", "teeth", "cavity", "eye"
+    or None."""
     text = f"{name} {material_name or ''}".lower()
     if re.search(FILM_WORDS, text):
         return "film"
@@ -139,6 +144,8 @@ def part_kind(name: str, material_name: str | None = None) -> str | None:
         return "lash"
     if re.search(TEETH_WORDS, text):
         return "teeth"
+    if re.search(CAVITY_WORDS, text):
+        return "cavity"
     if re.search(EYE_WORDS, text) and not re.search(NOT_EYE_WORDS, text):
         return "eye"
     return None
@@ -354,9 +361,9 @@ def surface(
             cover[piece] = np.clip(1.0 - (height - height.min()) / (2 * LASH_DRAWN_FRACTION * span), 0.0, 1.0)
     colors[lash & ~given] = LASH
     for name, ids in mesh.parts.items():
-        if kinds[name] == "teeth":
-            teeth = np.unique(f[ids])
-            colors[teeth[~given[teeth]]] = TOOTH
+        if kinds[name] in ("teeth", "cavity"):
+            used = np.unique(f[ids])
+            colors[used[~given[used]]] = TOOTH if kinds[name] == "teeth" else CAVITY
 
     # 5. eyeballs of one flat colour get a pupil, an iris and a sclera; a flat iris part from the
     # file (named so, or dark) keeps its colour and lends it to the iris painted on its eyeball
