@@ -365,3 +365,20 @@ def test_cli_reports_a_corrupt_rig_in_the_terminal_and_a_busy_port(web, tmp_path
         first.terminate()
         _, err = first.communicate(timeout=30)
     assert "broken.mrig" in err and "error" in err
+
+
+def test_display_pieces_draw_the_lips_in_their_own_colour_along_their_border(web, rig):
+    from mimetic.head.model import LIP
+    from mimetic.view.look import rig_look
+
+    look = rig_look(rig)
+    pieces = web.display_pieces(rig.mesh, look)
+    lips = [(faces, color) for name, faces, color in pieces if name.startswith("skin_")]
+    faces, color = min(lips, key=lambda piece: np.abs(np.array(piece[1]) - 255 * np.array(LIP)).max())
+    assert np.abs(np.array(color) - 255 * np.array(LIP)).max() < 12, color
+    lip_coloured = np.abs(rig.mesh.colors - LIP).max(axis=1) < 1e-3  # (n,)
+    corners = lip_coloured[rig.mesh.faces[faces]]  # (k, 3)
+    assert corners.any(axis=1).all()  # every face of the piece touches the lips ...
+    # ... and the lips' faces are all in it: the piece covers them, not a zigzag of their majority
+    inside = np.flatnonzero(lip_coloured[rig.mesh.faces].all(axis=1))
+    assert np.isin(inside, faces).all()

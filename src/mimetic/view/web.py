@@ -66,8 +66,8 @@ COLOR_LEVELS = 16
 MAX_PAINTED_COLORS = 6
 """A part with more distinct face colours than this is textured and drawn in one colour."""
 
-MAIN_COLOR_SHARE = 0.8
-"""A part whose main colour covers this share of its faces is drawn in one colour."""
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+"""Rec. 709 weights: which of a face's corner colours is the darkest."""
 
 PREPARE_NOTE = {"fem": "about 10 s", "tissue": "half a minute to two minutes (it is baked)"}
 """How long an engine takes to prepare, as the page says (benchmarks/bench_view.py: fem 9 s on the
@@ -113,10 +113,12 @@ def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, in
 
     One piece per part and colour (faces no part names form "surface"), keeping only the faces
     ``look`` (a ``render.appearance.Surface``) draws, so eye films and lash tips stay hidden. A part
-    painted in a few flat colours (an eyeball's sclera, iris and pupil) is split by face colour; a
-    textured or tinted one (the skin with its lips) takes its median colour. An eyeball the look paints by the
-    angle from its gaze axis is split into sclera, iris and pupil pieces by that angle. The pieces
-    ride on the mesh's vertices, so an iris turns with its eye.
+    painted in a few flat colours (an eyeball's sclera, iris and pupil; the skin with its lips) is
+    split by face colour, a face across a colour edge taking its darkest corner's colour: the edge
+    then runs along a loop of vertices (a round iris, the lips' border), where a majority of
+    corners zigzags from one face to the next. A textured part takes its median colour. An eyeball
+    the look paints by the angle from its gaze axis is split into sclera, iris and pupil pieces by
+    that angle. The pieces ride on the mesh's vertices, so an iris turns with its eye.
     """
     from mimetic.render.appearance import IRIS_ANGLE_RAD, NOT_EYE, PUPIL, PUPIL_ANGLE_RAD
 
@@ -140,14 +142,13 @@ def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, in
         gaze = look.gaze_cos[corners].mean(axis=1)
         if (look.gaze_cos[corners] == NOT_EYE).any():
             corner_levels = np.round(look.colors[corners] * COLOR_LEVELS)  # (k, 3 corners, rgb)
-            same = (corner_levels[:, 1] == corner_levels[:, 2]).all(axis=1)  # else corner 0 is the majority
-            levels = np.where(same[:, None], corner_levels[:, 1], corner_levels[:, 0])  # or a tie
+            darkest = (corner_levels @ LUMINANCE).argmin(axis=1)  # (k,)
+            levels = corner_levels[np.arange(len(face_ids)), darkest]  # (k, rgb)
             distinct, which = np.unique(levels, axis=0, return_inverse=True)
-            counts = np.bincount(which.ravel())
-            if len(distinct) > MAX_PAINTED_COLORS or counts.max() >= MAIN_COLOR_SHARE * len(face_ids):
-                # a texture, or a tint (lips on the skin) that flat pieces would draw as a jagged edge
+            if len(distinct) > MAX_PAINTED_COLORS:  # a texture
                 pieces.append((name, face_ids, rgb(np.median(look.colors[np.unique(corners)], axis=0))))
                 continue
+            counts = np.bincount(which.ravel())
             order = np.argsort(-counts)  # the part's main colour keeps its name
             for rank, k in enumerate(order):
                 piece = name if rank == 0 else f"{name}_{rank}"
@@ -317,6 +318,7 @@ class Viewer:
         gui, scene = self.server.gui, self.server.scene
         scene.set_up_direction("+y")
         run_javascript(self.server, KEY_GUARD_JS)
+        self._add_lights()
         self.head = scene.add_frame("/head", show_axes=False)
         self._add_meshes()
         self.server.on_client_connect(self._frame_camera)
@@ -344,6 +346,23 @@ class Viewer:
         if self.session is not None:
             with tabs.add_tab("Export"):
                 self._export_tab()
+
+    def _add_lights(self) -> None:
+        """The renderers' lights (``look.page_lights``) in place of viser's own and its
+        environment map, so the page looks like its PNG export."""
+        from mimetic.view.look import page_lights
+
+        scene = self.server.scene
+        scene.configure_default_lights(False)
+        scene.configure_environment_map(None)
+        lights = page_lights()
+        scene.add_light_ambient("/lights/ambient", intensity=lights.ambient)
+        size = float(np.ptp(self.mesh.vertices, axis=0).max())
+        for k, (direction, intensity) in enumerate(lights.directional):
+            position = tuple(float(x) for x in 10 * size * direction)  # shines toward the origin
+            scene.add_light_directional(
+                f"/lights/directional_{k}", intensity=intensity, position=position, cast_shadow=False
+            )
 
     def _status_text(self) -> str:
         what = self.source.name
