@@ -382,3 +382,23 @@ def test_display_pieces_draw_the_lips_in_their_own_colour_along_their_border(web
     # ... and the lips' faces are all in it: the piece covers them, not a zigzag of their majority
     inside = np.flatnonzero(lip_coloured[rig.mesh.faces].all(axis=1))
     assert np.isin(inside, faces).all()
+
+
+def test_switching_to_a_slow_engine_shows_its_progress_in_the_status_line(viewer):
+    prepare = viewer.deformers.prepare
+    seen = []
+
+    def watched(name, progress=None):
+        assert progress is not None, "the page passed no progress callback"
+        progress(1, 3)
+        seen.append(viewer.status.content)
+        prepare(name, progress)
+
+    viewer.deformers.prepare = watched
+    viewer._switch_engine("fem")
+    deadline = time.monotonic() + 120
+    while "engine fem" not in viewer.status.content and time.monotonic() < deadline:
+        time.sleep(0.1)  # the status line is written last, once the face is posed with fem
+    assert viewer.engine == "fem"
+    assert len(seen) == 1 and "preparing fem: 1/3" in seen[0], seen
+    assert "preparing" not in viewer.status.content and "engine fem" in viewer.status.content

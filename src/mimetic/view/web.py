@@ -71,7 +71,9 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 PREPARE_NOTE = {"fem": "about 10 s", "tissue": "half a minute to two minutes (it is baked)"}
 """How long an engine takes to prepare, as the page says (benchmarks/bench_view.py: fem 9 s on the
-default head and 14 s on ICT; tissue 29 s and 100 s)."""
+default head and 14 s on ICT; tissue 29 s and 100 s; measured again on the default head with
+another job on the 2 cores: wire 0.2 s, vector 0.3 s, fem 7.6 s, tissue 116 s). Engines not
+listed are ready in under a second."""
 
 SLIDER_STEPS = 200
 """Steps across a slider's range."""
@@ -166,6 +168,12 @@ def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, in
     return pieces
 
 
+def prepare_text(name: str, done: int, total: int, elapsed_s: float) -> str:
+    """The progress of engine ``name``'s preparation as the page shows it, e.g. "preparing tissue:
+    12/40, 31 s" (its stages, then its bake's poses, each counted by ``Deformers.prepare``)."""
+    return f"preparing {name}: {done}/{total}, {elapsed_s:.0f} s"
+
+
 def check_port(host: str, port: int) -> None:
     """ViewError unless ``port`` on ``host`` is free (a second viewer on the same port)."""
     with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM) as probe:
@@ -248,6 +256,7 @@ class Viewer:
         self.session = None
         self.timeline = None
         self.engine = engine
+        self.preparing: str | None = None  # the progress of an engine being prepared
         self.facing = next(iter(FACINGS))
         self.turn = np.eye(3)
         self.parts: list[tuple[np.ndarray, object]] = []
@@ -369,7 +378,8 @@ class Viewer:
         n = self.mesh.n_vertices
         if self.session is None:
             return f"**{what}**: {n:,} vertices, {self.mesh.units or 'unknown units'}; pick landmarks"
-        return f"**{what}**: {n:,} vertices · engine {self.engine} · pose {self.last_update_ms:.1f} ms"
+        text = f"**{what}**: {n:,} vertices · engine {self.engine} · pose {self.last_update_ms:.1f} ms"
+        return text if self.preparing is None else f"{text} · {self.preparing}"
 
     def _add_meshes(self) -> None:
         from mimetic.render.appearance import surface
@@ -641,16 +651,26 @@ class Viewer:
             self.engine = name
             self._refresh()
             return
-        wait = PREPARE_NOTE.get(name, "a few seconds")
+        wait = PREPARE_NOTE.get(name, "under a second")
         notes = self._notify(f"Preparing the {name} engine", f"This takes {wait}, once.", loading=True)
+        started = time.perf_counter()
+
+        def progress(done: int, total: int) -> None:
+            """The preparation's stages, then its bake's poses: in the notes and the status line."""
+            self.preparing = prepare_text(name, done, total, time.perf_counter() - started)
+            for note in notes:
+                note.body = f"This takes {wait}, once. {self.preparing}"
+            self.status.content = self._status_text()
 
         def work() -> None:
             try:
-                self.deformers.prepare(name)
+                self.deformers.prepare(name, progress)
             except MimeticError as error:
                 self._notify(f"The {name} engine failed", str(error), color="red")
                 return
             finally:
+                self.preparing = None
+                self.status.content = self._status_text()
                 for note in notes:
                     note.remove()
             with self._lock:
