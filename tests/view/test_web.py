@@ -402,3 +402,18 @@ def test_switching_to_a_slow_engine_shows_its_progress_in_the_status_line(viewer
     assert viewer.engine == "fem"
     assert len(seen) == 1 and "preparing fem: 1/3" in seen[0], seen
     assert "preparing" not in viewer.status.content and "engine fem" in viewer.status.content
+
+
+def test_display_pieces_join_parts_of_one_colour_that_meet(web, sphere):
+    from mimetic.render.appearance import surface
+    from mimetic.render.raster import ALBEDO
+
+    top = sphere.vertices[sphere.faces].mean(axis=1)[:, 1] > 0  # (m,) faces above the equator
+    parts = {"face": np.flatnonzero(top), "head_and_neck": np.flatnonzero(~top)}
+    mesh = Mesh(sphere.vertices, sphere.faces, parts)
+    assert np.isin(sphere.faces[top], sphere.faces[~top]).any()  # the parts share their border
+    pieces = web.display_pieces(mesh, surface(mesh, ALBEDO))
+    assert [name for name, _, _ in pieces] == ["face"]  # one mesh: one set of normals, no seam
+    np.testing.assert_array_equal(pieces[0][1], np.arange(sphere.n_faces))
+    apart = Mesh.concatenate({"a": sphere, "b": sphere.with_vertices(sphere.vertices + 3.0)})
+    assert len(web.display_pieces(apart, surface(apart, ALBEDO))) == 2  # no shared vertex: kept apart

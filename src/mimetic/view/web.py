@@ -165,7 +165,33 @@ def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, in
         ):
             if mask.any():
                 pieces.append((piece, face_ids[mask], rgb(color)))
-    return pieces
+    return _welded(mesh.faces, pieces)
+
+
+def _welded(
+    faces: np.ndarray, pieces: list[tuple[str, np.ndarray, tuple[int, int, int]]]
+) -> list[tuple[str, np.ndarray, tuple[int, int, int]]]:
+    """``pieces`` with those of one colour that share a vertex joined (under the first one's name).
+
+    The browser computes each piece's normals from its own faces, so a border between two pieces
+    is a shading seam: between parts of one colour that meet (ICT's face and head-and-neck parts,
+    across the forehead) it had no reason to be there.
+    """
+    groups: list[list[int]] = []
+    vertices: list[np.ndarray] = []
+    for k, (_, face_ids, color) in enumerate(pieces):
+        used = np.unique(faces[face_ids])
+        for g, group in enumerate(groups):
+            if pieces[group[0]][2] == color and np.isin(used, vertices[g]).any():
+                group.append(k)
+                vertices[g] = np.union1d(vertices[g], used)
+                break
+        else:
+            groups.append([k])
+            vertices.append(used)
+    return [
+        (pieces[g[0]][0], np.sort(np.concatenate([pieces[k][1] for k in g])), pieces[g[0]][2]) for g in groups
+    ]
 
 
 def prepare_text(name: str, done: int, total: int, elapsed_s: float) -> str:
