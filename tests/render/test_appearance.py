@@ -426,3 +426,23 @@ def test_surface_colours_an_uncoloured_mouth_socket_dark_and_keeps_a_coloured_on
     np.testing.assert_allclose(look.colors[skin_only], np.tile(ALBEDO, (len(skin_only), 1)))
     painted = Mesh(sphere.vertices, sphere.faces, half, np.full((sphere.n_vertices, 3), 0.5))
     np.testing.assert_array_equal(surface(painted, ALBEDO).colors, painted.colors)  # the file's colours stay
+
+
+def test_render_a_sphere_split_at_a_seam_shades_like_the_whole_one(gl_renderer, sphere):
+    """A glTF file splits a mesh at its UV seams; the split copy must not show the seam."""
+    v, f = sphere.vertices, sphere.faces
+    east = v[f].mean(axis=1)[:, 0] > 0  # (m,) faces on the +X half
+    seam = np.unique(f[east])
+    copy = np.full(len(v), -1)
+    copy[seam] = len(v) + np.arange(len(seam))  # the +X half gets its own copies of its vertices
+    split = Mesh(np.concatenate([v, v[seam]]), np.where(east[:, None], copy[f], f))
+    assert split.n_vertices > sphere.n_vertices
+    look = surface(split, ALBEDO)
+    assert look.weld.shape == (split.n_vertices,) and look.weld.dtype == np.int64
+    border = np.intersect1d(f[east], f[~east])  # on the seam: used by both halves
+    np.testing.assert_array_equal(look.weld[copy[border]], border)  # a copy takes its original's normal
+    camera = Camera(eye=(0, 0, 4), target=(0, 0, 0), fov_y_deg=40)
+    for render in (gl_renderer.render, rasterize):
+        whole, cut = (render(m, camera, size=96).astype(int) for m in (sphere, split))
+        difference = np.abs(cut - whole).max(axis=2)
+        assert difference.max() <= 2, f"{render.__name__}: the seam shows ({difference.max()} levels)"

@@ -22,9 +22,8 @@ import math
 import numpy as np
 
 from mimetic.errors import MeshError
-from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
-from mimetic.render.appearance import NOT_EYE, Surface, eye_albedo, surface
+from mimetic.render.appearance import NOT_EYE, Surface, eye_albedo, shading_normals, surface
 from mimetic.render.camera import Camera, _size, clip_planes
 
 log = logging.getLogger(__name__)
@@ -160,7 +159,7 @@ def rasterize(
     view = camera.view_matrix()
     rotation = view[:3, :3]
     p_view = mesh.vertices @ rotation.T + view[:3, 3]  # (n, 3)
-    n_view = vertex_normals(mesh.vertices, faces) @ rotation.T  # (n, 3)
+    n_view = shading_normals(mesh.vertices, faces, look.weld) @ rotation.T  # (n, 3)
     depth = -p_view[:, 2]  # (n,)
     near, _ = clip_planes(camera, mesh.vertices)
     f = 1.0 / math.tan(math.radians(camera.fov_y_deg) / 2)

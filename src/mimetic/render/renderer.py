@@ -22,7 +22,6 @@ import warnings
 import numpy as np
 
 from mimetic.errors import MimeticWarning, RenderError
-from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.render import appearance, raster
 from mimetic.render.appearance import Surface, surface
@@ -281,7 +280,8 @@ class Renderer:
         Parameters
         ----------
         mesh : Mesh
-            Smooth-shaded with area-weighted vertex normals, both sides lit (back faces darker);
+            Smooth-shaded with area-weighted vertex normals (shared by vertices at one rest position,
+            ``Surface.weld``), both sides lit (back faces darker);
             drawn and coloured as ``look`` says.
         size : int or (width, height)
         wireframe : bool
@@ -322,7 +322,7 @@ class Renderer:
         faces = drawn.ravel()  # (3m',) corner → vertex
         corners = np.empty((len(faces), _CORNER_FLOATS), np.float32)
         corners[:, 0:3] = mesh.vertices[faces]
-        corners[:, 3:6] = vertex_normals(mesh.vertices, drawn)[faces]
+        corners[:, 3:6] = appearance.shading_normals(mesh.vertices, drawn, look.weld)[faces]
         corners[:, 6:9] = look.colors[faces]
         corners[:, 9:12] = np.tile(np.eye(3, dtype=np.float32), (len(drawn), 1))
         corners[:, 12:15] = look.iris_colors[faces]
