@@ -46,6 +46,7 @@ def test_pose_writes_the_posed_mesh_in_rig_vertex_order(rig_file, tmp_path, engi
     out = tmp_path / f"joy_{engine}.obj"
     result = run_cli("pose", rig_file, "--expr", "joy", "--engine", engine, "-o", out)
     assert result.exit_code == 0, result.output
+    assert f"prepare {engine}" in result.stderr  # the engine's preparation is shown as it starts
     mesh = load_mesh(out)
     assert mesh.vertices.shape == (rig.n_vertices, 3)
     expected = make_engine(rig, engine).deform(expression_pose(rig, "joy"))

@@ -15,7 +15,7 @@ import trimesh
 
 from mimetic.head.model import Head
 from mimetic.head.params import PARAM_RANGES, HeadParams
-from mimetic.head.parts import IRIS_ANGLE, PUPIL_ANGLE, SCLERA
+from mimetic.head.parts import IRIS_ANGLE, PUPIL_ANGLE, SCLERA, TOOTH, TOOTH_COLUMNS
 from mimetic.head.topology import build_topology
 from mimetic.mesh.geometry import boundary_loops, face_normals
 from mimetic.testing import RANDOM_SEEDS, SMALL_RESOLUTION, capped_skin, head_with, range_end_params
@@ -379,3 +379,24 @@ def test_make_head_eyeball_iris_and_pupil_colours_differ_from_the_sclera(head):
         assert pupil.mean() < iris.mean() < sclera.mean(), "pupil darker than iris darker than sclera"
         assert head.landmarks[f"pupil_{side}"] in ids
         assert colors[head.landmarks[f"pupil_{side}"]].max() < 0.1
+
+
+def test_make_head_teeth_are_shaded_apart_and_the_mouth_cavity_is_dark(head):
+    colors = head.mesh.colors
+    assert colors.shape == (head.mesh.n_vertices, 3) and colors.dtype == np.float32
+    luminance = colors.astype(np.float64) @ (0.2126, 0.7152, 0.0722)  # (n,)
+    for part in ("teeth_upper", "teeth_lower"):
+        ids = part_vertices(head, part)
+        columns = luminance[ids].reshape(-1, 4)  # (n, 4): the arch's columns, 4 corners each
+        edge = columns[:, 1]  # the biting edge, along the arch
+        assert edge.max() == pytest.approx(np.dot(TOOTH, (0.2126, 0.7152, 0.0722)), abs=0.02)
+        assert edge.min() < 0.6 * edge.max(), f"{part}: no dark gaps between the teeth"
+        dark = edge < 0.8 * edge.max()  # (n,) columns at a gap between teeth
+        gaps = int(dark[0]) + int((dark[1:] & ~dark[:-1]).sum())  # runs of dark columns
+        assert gaps >= len(edge) / TOOTH_COLUMNS - 1, f"{part}: {gaps} gaps along {len(edge)} columns"
+        np.testing.assert_allclose(columns, columns[::-1], atol=1e-6)  # mirror symmetric
+        assert (columns[:, 0] <= columns[:, 1]).all(), f"{part}: the root end is not darker"
+    cavity = part_vertices(head, "mouth")
+    mouth = luminance[cavity]
+    lips = luminance[np.setdiff1d(head.regions["upper_lip"], cavity)]  # the region holds the bag's rim
+    assert mouth.max() < 0.1 < lips.min(), "the mouth cavity is not dark beside the lips"

@@ -14,7 +14,7 @@ from trimesh.visual.material import PBRMaterial
 from mimetic.mesh.io import load_mesh
 from mimetic.mesh.model import Material, Mesh
 from mimetic.render import Camera, project, rasterize
-from mimetic.render.appearance import IRIS, LASH, NOT_EYE, SCLERA, part_kind, surface
+from mimetic.render.appearance import CAVITY, IRIS, LASH, NOT_EYE, SCLERA, part_kind, surface
 from mimetic.render.raster import ALBEDO
 from mimetic.testing import load_ict, require_shared_data
 
@@ -147,7 +147,9 @@ def test_render_eye_pattern_and_films_agree_between_gl_and_cpu(gl_renderer):
     cpu = rasterize(mesh, camera, size=(160, 120))
     difference = np.abs(gl.astype(int) - cpu.astype(int))
     assert difference.mean() < 3.0, f"mean abs diff {difference.mean():.2f}/255"
-    assert (difference.max(axis=2) > 8).mean() < 0.01
+    # GL blends the edges of the pupil, iris and limbal ring over a pixel; the CPU rasterizer
+    # draws them hard: those edge pixels (1.3 % of this picture) may differ, nothing else
+    assert (difference.max(axis=2) > 8).mean() < 0.02
 
 
 def test_render_painted_eyeball_keeps_its_own_colours(gl_renderer):
@@ -206,6 +208,9 @@ def test_render_rejects_a_surface_made_for_another_mesh(gl_renderer, sphere):
         ("Eye socket left", None, None),
         ("eyebrow_L", None, None),
         ("teeth_upper", None, "teeth"),
+        ("Mouth socket", None, "cavity"),
+        ("x", "M_MouthCavity", "cavity"),
+        ("mouth_corner_L", None, None),
         ("skin", None, None),
     ],
 )
@@ -388,3 +393,56 @@ def test_render_ict_obj_with_materials_uses_them(gl_renderer, ict, tmp_path):
     sclera = look.colors[mesh.part_vertices("M_ScleraLeft")]
     np.testing.assert_allclose(sclera, np.tile([0.95, 0.95, 0.93], (len(sclera), 1)), atol=1e-6)
     assert not np.allclose(SCLERA, (0.95, 0.95, 0.93)) and not np.allclose(IRIS, (0.15, 0.3, 0.6))
+
+
+def test_render_painted_iris_edges_are_antialiased_not_stair_stepped(gl_renderer):
+    """Along a row from the pupil's centre to the sclera, each edge (pupil, limbus, sclera) passes
+    through an in-between shade: no one-pixel step makes most of the change across its edge (a
+    hard edge does: 0.97 to 1 of it, measured before the shader blended the bands)."""
+    mesh = mini_head()
+    size = 192
+    image = gl_renderer.render(mesh, EYE_CAMERA, size=size, msaa=4).astype(float)
+    assert image.shape == (size, size, 3)
+    x, y = project(np.stack([on_eye(0.0), on_eye(50.0)]), EYE_CAMERA, size).pixels.T
+    row = image[int(y[0]), int(x[0]) : int(x[1]) + 1].mean(axis=1)  # (k,) pupil centre → sclera
+    steps = np.diff(row)
+    edges = np.flatnonzero(np.abs(steps) > 10)
+    edges = edges[(edges >= 2) & (edges < len(steps) - 2)]
+    assert len(edges) >= 3, f"the row {row.round()} does not cross a pupil, an iris and a sclera"
+    for i in edges:
+        across = row[i + 3] - row[i - 2]  # the change across the edge, two pixels either side
+        share = steps[i] / across
+        assert share < 0.8, f"a {steps[i]:.0f} step of {across:.0f} at pixel {i} of {row.round()}"
+
+
+def test_surface_colours_an_uncoloured_mouth_socket_dark_and_keeps_a_coloured_one(sphere):
+    faces = np.arange(sphere.n_faces)
+    half = {"skin": faces[: len(faces) // 2], "Mouth socket": faces[len(faces) // 2 :]}
+    bare = Mesh(sphere.vertices, sphere.faces, half)
+    look = surface(bare, ALBEDO)
+    socket = np.unique(sphere.faces[half["Mouth socket"]])
+    skin_only = np.setdiff1d(np.unique(sphere.faces[half["skin"]]), socket)
+    np.testing.assert_allclose(look.colors[socket], np.tile(CAVITY, (len(socket), 1)))
+    np.testing.assert_allclose(look.colors[skin_only], np.tile(ALBEDO, (len(skin_only), 1)))
+    painted = Mesh(sphere.vertices, sphere.faces, half, np.full((sphere.n_vertices, 3), 0.5))
+    np.testing.assert_array_equal(surface(painted, ALBEDO).colors, painted.colors)  # the file's colours stay
+
+
+def test_render_a_sphere_split_at_a_seam_shades_like_the_whole_one(gl_renderer, sphere):
+    """A glTF file splits a mesh at its UV seams; the split copy must not show the seam."""
+    v, f = sphere.vertices, sphere.faces
+    east = v[f].mean(axis=1)[:, 0] > 0  # (m,) faces on the +X half
+    seam = np.unique(f[east])
+    copy = np.full(len(v), -1)
+    copy[seam] = len(v) + np.arange(len(seam))  # the +X half gets its own copies of its vertices
+    split = Mesh(np.concatenate([v, v[seam]]), np.where(east[:, None], copy[f], f))
+    assert split.n_vertices > sphere.n_vertices
+    look = surface(split, ALBEDO)
+    assert look.weld.shape == (split.n_vertices,) and look.weld.dtype == np.int64
+    border = np.intersect1d(f[east], f[~east])  # on the seam: used by both halves
+    np.testing.assert_array_equal(look.weld[copy[border]], border)  # a copy takes its original's normal
+    camera = Camera(eye=(0, 0, 4), target=(0, 0, 0), fov_y_deg=40)
+    for render in (gl_renderer.render, rasterize):
+        whole, cut = (render(m, camera, size=96).astype(int) for m in (sphere, split))
+        difference = np.abs(cut - whole).max(axis=2)
+        assert difference.max() <= 2, f"{render.__name__}: the seam shows ({difference.max()} levels)"

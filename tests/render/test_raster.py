@@ -8,7 +8,7 @@ import trimesh
 
 from mimetic.errors import MeshError
 from mimetic.mesh.model import Mesh
-from mimetic.render.raster import BACKGROUND, shade, to_uint8
+from mimetic.render.raster import AMBIENT, BACKGROUND, FILL, FILL_DIR_VIEW, shade, to_uint8
 from mimetic.view import Camera, frame_camera, project, rasterize
 
 
@@ -63,13 +63,16 @@ def test_rasterize_nearer_surface_wins():
 
 def test_shade_lights_front_facing_normal_toward_light_brightest():
     light = np.array([0.3, 0.6, 1.0]) / np.linalg.norm([0.3, 0.6, 1.0])
-    normals = np.array([light, [0, 0, 1.0], [0, -1.0, 0]])
-    positions = np.tile([[0, 0, -3.0]], (3, 1))
-    colors = np.full((3, 3), 0.5)
-    front = np.ones(3, bool)
+    normals = np.array([light, [-1.0, 0, 0], -light, [0, -1.0, 0]])  # key, fill only, neither, below
+    positions = np.tile([[0, 0, -3.0]], (4, 1))
+    colors = np.full((4, 3), 0.5)
+    front = np.ones(4, bool)
     c = shade(normals, positions, colors, front)
-    assert c.shape == (3, 3)
+    assert c.shape == (4, 3)
     assert c[0, 0] > c[1, 0] > c[2, 0]
-    np.testing.assert_allclose(c[2], 0.5 * 0.25)  # ambient only
+    np.testing.assert_allclose(c[2], 0.5 * AMBIENT)  # facing away from both lights: ambient only
+    # facing down, away from the key light: ambient and the fill from below (no smudge under a nose)
+    np.testing.assert_allclose(c[3], 0.5 * (AMBIENT + FILL * -FILL_DIR_VIEW[1]))
+    assert c[3, 0] > 1.5 * c[2, 0]
     back = shade(normals, positions, colors, ~front)  # flipped, darkened
     assert (back[2] > back[0]).all()

@@ -7,8 +7,9 @@ clicks the "jaw open (rad)" slider's track with the mouse. The server must see t
 and the picture must change where the jaw is and nowhere else: the mouth and chin are located on
 screen by projecting the rig's landmarks with the camera the browser reports, and the screenshots
 before and after are compared over the 3D canvas only (the GUI panel and notifications left out).
-The other tests open a corrupt rig (the page shows the error) and pick a landmark by clicking the
-nose (the click's ray must hit the mesh).
+The other tests open a corrupt rig (the page shows the error), pick a landmark by clicking the
+nose (the click's ray must hit the mesh), and hold an arrow key on a focused slider (the slider
+moves, the camera does not; on the canvas the same key turns the camera).
 
 Screenshots (before, after, difference) go to ``$MIMETIC_ARTEFACTS/viewer`` when that is set, else
 to the test's temporary folder; with ``MIMETIC_UPDATE_SCREENSHOT=1`` the "after" shot also becomes
@@ -366,3 +367,37 @@ def test_view_click_on_nose_picks_landmark(open_page, rig, rig_path):
     distance = float(np.linalg.norm(picked - nose[0]))
     print(f"clicked the nose tip at ({x:.0f}, {y:.0f}); picked {distance:.3g} from it (head {size:.3g})")
     assert distance < 0.03 * size, f"the pick landed {distance:.3g} from the nose tip"
+
+
+def test_view_arrow_keys_on_a_slider_move_the_slider_not_the_camera(open_page, rig_path):
+    viewer, page = open_page(rig_path)
+    face_drawn(page)
+    client = next(iter(viewer.server.get_clients().values()))
+    jaw = viewer.session.index["jaw_open"]
+
+    def camera() -> np.ndarray:
+        return np.array([*client.camera.position, *client.camera.look_at], np.float64)
+
+    def hold(key: str) -> None:
+        page.keyboard.down(key)
+        time.sleep(0.6)  # viser moves the camera every frame while a key is held
+        page.keyboard.up(key)
+
+    # on the canvas the arrow key turns the camera (the check below can fail)
+    canvas = canvas_box(page)
+    page.mouse.click(canvas.x0 + 5, canvas.y1 - 5)  # the background near a corner: no pick, no GUI
+    start = camera()
+    hold("ArrowRight")
+    assert wait_for(lambda: not np.allclose(camera(), start, atol=1e-6)), "ArrowRight did not turn the camera"
+
+    open_folder(page, "Jaw")
+    thumb = slider(page, "jaw open (rad)").locator(".mantine-Slider-thumb")
+    thumb.focus()
+    time.sleep(1.0)  # the camera's last updates arrive
+    start, value = camera(), viewer.session.pose()[jaw]
+    hold("ArrowRight")
+    assert wait_for(lambda: viewer.session.pose()[jaw] > value), "ArrowRight on the slider did not move it"
+    time.sleep(1.0)
+    moved = float(np.abs(camera() - start).max())
+    print(f"jaw_open {value:.3f} → {viewer.session.pose()[jaw]:.3f}; the camera moved by {moved:.2g}")
+    assert moved < 1e-6, f"ArrowRight on the focused slider also moved the camera (by {moved:.3g})"

@@ -55,6 +55,10 @@ def test_rig_look_of_the_generated_rig_changes_nothing(rig):
     np.testing.assert_array_equal(look.faces, np.arange(rig.mesh.n_faces))
     np.testing.assert_array_equal(look.colors, rig.mesh.colors)
     assert (look.gaze_cos == NOT_EYE).all() and (look.cover == 1.0).all()
+    # its lips touch at rest and its mouth bag's rim lies on them: neither is welded (streaks)
+    v = rig.mesh.vertices
+    assert len(np.unique(v, axis=0)) < len(v)  # there are vertices at one position ...
+    np.testing.assert_array_equal(look.weld, np.arange(len(v)))  # ... each keeps its own normal
 
 
 def test_render_rig_without_colours_shows_dark_pupils_and_light_sclera(bare_rig):

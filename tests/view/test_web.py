@@ -365,3 +365,55 @@ def test_cli_reports_a_corrupt_rig_in_the_terminal_and_a_busy_port(web, tmp_path
         first.terminate()
         _, err = first.communicate(timeout=30)
     assert "broken.mrig" in err and "error" in err
+
+
+def test_display_pieces_draw_the_lips_in_their_own_colour_along_their_border(web, rig):
+    from mimetic.head.model import LIP
+    from mimetic.view.look import rig_look
+
+    look = rig_look(rig)
+    pieces = web.display_pieces(rig.mesh, look)
+    lips = [(faces, color) for name, faces, color in pieces if name.startswith("skin_")]
+    faces, color = min(lips, key=lambda piece: np.abs(np.array(piece[1]) - 255 * np.array(LIP)).max())
+    assert np.abs(np.array(color) - 255 * np.array(LIP)).max() < 12, color
+    lip_coloured = np.abs(rig.mesh.colors - LIP).max(axis=1) < 1e-3  # (n,)
+    corners = lip_coloured[rig.mesh.faces[faces]]  # (k, 3)
+    assert corners.any(axis=1).all()  # every face of the piece touches the lips ...
+    # ... and the lips' faces are all in it: the piece covers them, not a zigzag of their majority
+    inside = np.flatnonzero(lip_coloured[rig.mesh.faces].all(axis=1))
+    assert np.isin(inside, faces).all()
+
+
+def test_switching_to_a_slow_engine_shows_its_progress_in_the_status_line(viewer):
+    prepare = viewer.deformers.prepare
+    seen = []
+
+    def watched(name, progress=None):
+        assert progress is not None, "the page passed no progress callback"
+        progress(1, 3)
+        seen.append(viewer.status.content)
+        prepare(name, progress)
+
+    viewer.deformers.prepare = watched
+    viewer._switch_engine("fem")
+    deadline = time.monotonic() + 120
+    while "engine fem" not in viewer.status.content and time.monotonic() < deadline:
+        time.sleep(0.1)  # the status line is written last, once the face is posed with fem
+    assert viewer.engine == "fem"
+    assert len(seen) == 1 and "preparing fem: 1/3" in seen[0], seen
+    assert "preparing" not in viewer.status.content and "engine fem" in viewer.status.content
+
+
+def test_display_pieces_join_parts_of_one_colour_that_meet(web, sphere):
+    from mimetic.render.appearance import surface
+    from mimetic.render.raster import ALBEDO
+
+    top = sphere.vertices[sphere.faces].mean(axis=1)[:, 1] > 0  # (m,) faces above the equator
+    parts = {"face": np.flatnonzero(top), "head_and_neck": np.flatnonzero(~top)}
+    mesh = Mesh(sphere.vertices, sphere.faces, parts)
+    assert np.isin(sphere.faces[top], sphere.faces[~top]).any()  # the parts share their border
+    pieces = web.display_pieces(mesh, surface(mesh, ALBEDO))
+    assert [name for name, _, _ in pieces] == ["face"]  # one mesh: one set of normals, no seam
+    np.testing.assert_array_equal(pieces[0][1], np.arange(sphere.n_faces))
+    apart = Mesh.concatenate({"a": sphere, "b": sphere.with_vertices(sphere.vertices + 3.0)})
+    assert len(web.display_pieces(apart, surface(apart, ALBEDO))) == 2  # no shared vertex: kept apart

@@ -15,8 +15,15 @@ SCLERA = (0.93, 0.91, 0.87)
 IRIS = (0.36, 0.22, 0.12)
 PUPIL = (0.03, 0.03, 0.03)
 TOOTH = (0.93, 0.91, 0.83)
+TOOTH_GAP_SHADE = 0.45
+"""Albedo of a tooth at the gaps between teeth, × ``TOOTH``: without it an arch read as one band."""
+TOOTH_ROOT_SHADE = 0.7
+"""Albedo at the root end of a tooth (toward the gum), × ``TOOTH``."""
+TOOTH_COLUMNS = 3.5
+"""A tooth's width in columns of the arch's mesh (48 columns at the default resolution)."""
 TONGUE = (0.78, 0.38, 0.38)
-MOUTH = (0.45, 0.18, 0.18)
+MOUTH = (0.2, 0.05, 0.05)
+"""The mouth cavity: dark red, so an open mouth reads as a hole, not as more lip."""
 IRIS_ANGLE = 0.52  # angular radius of the iris on the eyeball, rad
 CORNEA_BULGE = 0.05  # how far the cornea bulges out of the eyeball sphere, relative to its radius
 PUPIL_ANGLE = 0.19
@@ -140,7 +147,14 @@ def teeth(front: np.ndarray, upper: bool, s: float) -> Mesh:
     if _signed_volume(grid, faces) < 0:
         faces = faces[:, ::-1]
     verts = grid + front
-    return Mesh(verts, faces, colors=np.tile(np.float32(TOOTH), (len(verts), 1)))
+    # teeth TOOTH_COLUMNS columns wide with dark gaps, one gap on the midline: shaded by column, as
+    # the notches above fall between columns at this resolution, too fine to shade the teeth apart
+    d = np.abs(np.arange(n) - (n - 1) / 2)  # columns from the midline (0.5, 1.5, ...)
+    crown = np.abs(np.sin(np.pi * d / TOOTH_COLUMNS))  # (n,) 0 at a gap, 1 mid-tooth
+    section_shade = np.array([TOOTH_ROOT_SHADE, 1.0, 1.0, TOOTH_ROOT_SHADE])  # root, edge, edge, root
+    shade = TOOTH_GAP_SHADE + (1 - TOOTH_GAP_SHADE) * crown[:, None] * section_shade  # (n, 4)
+    colors = (shade.reshape(-1, 1) * np.array(TOOTH)).astype(np.float32)  # (n*4, 3), as ``grid``
+    return Mesh(verts, faces, colors=colors)
 
 
 def tongue(centre: np.ndarray, s: float) -> Mesh:

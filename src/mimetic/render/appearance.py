@@ -18,7 +18,8 @@ renderers draw exactly that ``Surface``, so they agree. The rules, in order:
    (not drawn); one growing out in front of it is a lash. Parts named as lashes are lashes too.
    Lashes are drawn dark (``LASH``, unless the file colours them) and only over the part of the
    card nearest the eyeball (``LASH_DRAWN_FRACTION``), as an alpha-textured card looks. Parts named
-   as teeth are ``TOOTH`` where the file gives no colour.
+   as teeth are ``TOOTH``, and parts named as the mouth's cavity (``CAVITY_WORDS``) ``CAVITY``,
+   where the file gives no colour.
 5. An eyeball piece of one flat colour (no colour, or a light one from the file) gets a pupil, an
    iris with a darker rim, and a sclera (the file's light colour, else ``SCLERA``), around its gaze
    axis: world +Z (the face looks down +Z) through the centre of the sphere fitted to the piece,
@@ -38,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimetic.mesh.geometry import connected_components
+from mimetic.mesh.geometry import connected_components, face_normals, vertex_normals
 from mimetic.mesh.model import Mesh
 
 # The generated head's eyeball and tooth colours (``mimetic.head.parts``, which render cannot
@@ -49,6 +50,8 @@ LIMBUS_SHADE = 0.45
 """The limbal ring, the iris's outer rim, is the iris colour times this."""
 PUPIL = (0.03, 0.03, 0.03)
 TOOTH = (0.93, 0.91, 0.83)
+CAVITY = (0.2, 0.05, 0.05)
+"""The inside of the mouth: dark red, so an open mouth reads as a hole, not as skin."""
 LASH = (0.08, 0.06, 0.05)
 IRIS_ANGLE_RAD = 0.45
 """Angular radius of the iris seen from the eyeball's centre (a 5.2 mm iris radius on a 12 mm
@@ -62,6 +65,7 @@ FILM_WORDS = r"occlusion|lacrimal|tear|cornea|film|meniscus|wet|eye[\W_]*blend"
 LASH_WORDS = r"lash"
 IRIS_WORDS = r"iris|pupil"
 TEETH_WORDS = r"teeth|tooth"
+CAVITY_WORDS = r"mouth[\W_]*(socket|cavity|bag)|oral[\W_]*cavity"
 EYE_WORDS = r"eye|sclera|iris|pupil"
 NOT_EYE_WORDS = r"lid|brow|socket|bag|shadow|liner"
 FLAT_COLOR_TOL = 0.02
@@ -86,6 +90,10 @@ LASH_REACH_REL = 0.25
 """A lash comes within this × the eyeball radius of its surface, ..."""
 LASH_EXTENT_REL = 3.0
 """... is at most this × the radius long, and lies in front of the eyeball's centre."""
+WELD_MAX_ANGLE_RAD = math.radians(60)
+"""Vertices of a part at one position are welded (``Surface.weld``) when their own normals are
+within this angle: both sides of a UV seam are; the upper and lower lips, or lids, that touch at
+rest are not (about 180° apart), and welding them streaked the lips."""
 LASH_DRAWN_FRACTION = 0.4
 """The part of a lash card drawn: from its root to this fraction of its height off the eyeball."""
 
@@ -110,6 +118,11 @@ class Surface:
         everything else.
     iris_colors : (n, 3) float64
         The iris colour of painted eyeballs (a flat iris part's colour from the file, else ``IRIS``).
+    weld : (n,) int64
+        For each vertex, the first vertex of its part at its rest position (itself, mostly):
+        vertices of one part at one position share one normal (``shading_normals``), so a mesh
+        split at its UV seams, as glTF files are, shades smoothly across them. Parts that meet,
+        and surfaces that touch (``WELD_MAX_ANGLE_RAD``), keep their own normals.
     """
 
     faces: np.ndarray
@@ -117,12 +130,19 @@ class Surface:
     gaze_cos: np.ndarray
     cover: np.ndarray
     iris_colors: np.ndarray
+    weld: np.ndarray
 
     def check(self, mesh: Mesh) -> None:
         """Raise ``ValueError`` unless this surface was made for a mesh of ``mesh``'s shape."""
         n, m = mesh.n_vertices, mesh.n_faces
-        shapes = (self.colors.shape, self.gaze_cos.shape, self.cover.shape, self.iris_colors.shape)
-        if shapes != ((n, 3), (n,), (n,), (n, 3)) or (len(self.faces) and (self.faces.max() >= m)):
+        shapes = (
+            self.colors.shape,
+            self.gaze_cos.shape,
+            self.cover.shape,
+            self.iris_colors.shape,
+            self.weld.shape,
+        )
+        if shapes != ((n, 3), (n,), (n,), (n, 3), (n,)) or (len(self.faces) and (self.faces.max() >= m)):
             raise ValueError(
                 f"this Surface was made for another mesh (colors {self.colors.shape}, faces up to "
                 f"{int(self.faces.max()) if len(self.faces) else -1}); the mesh has {n} vertices and {m} "
@@ -131,7 +151,8 @@ class Surface:
 
 
 def part_kind(name: str, material_name: str | None = None) -> str | None:
-    """A part's kind from its name and its material's name: "film", "lash", "teeth", "eye" or None."""
+    """A part's kind from its name and its material's name: "film", "lash", "teeth", "cavity", "eye"
+    or None."""
     text = f"{name} {material_name or ''}".lower()
     if re.search(FILM_WORDS, text):
         return "film"
@@ -139,9 +160,23 @@ def part_kind(name: str, material_name: str | None = None) -> str | None:
         return "lash"
     if re.search(TEETH_WORDS, text):
         return "teeth"
+    if re.search(CAVITY_WORDS, text):
+        return "cavity"
     if re.search(EYE_WORDS, text) and not re.search(NOT_EYE_WORDS, text):
         return "eye"
     return None
+
+
+def shading_normals(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:
+    """Area-weighted unit normals (n, 3) float64 of ``vertices`` (n, 3) over the drawn ``faces``
+    (k, 3), summed over each group of vertices that ``weld`` (n,) (``Surface.weld``) joins; (0, 0, 0)
+    where no drawn face touches the group."""
+    fn = face_normals(vertices, faces, unit=False)  # (k, 3), |fn| = 2 area
+    corner = weld[faces].ravel()  # (3k,) the group of each corner
+    out = np.stack([np.bincount(corner, np.repeat(fn[:, d], 3), len(vertices)) for d in range(3)], axis=1)
+    out = out[weld]  # (n, 3) each vertex takes its group's sum
+    length = np.linalg.norm(out, axis=1, keepdims=True)
+    return out / np.where(length > 0, length, 1.0)
 
 
 def eye_albedo(gaze_cos: np.ndarray, sclera: np.ndarray, iris: np.ndarray) -> np.ndarray:
@@ -299,8 +334,17 @@ def surface(
         colors[given] = total[given] / count[given, None]
     gaze_cos = np.full(n, NOT_EYE)
     cover = np.ones(n)
+    part_of = np.full(n, -1.0)  # (n,) a part holding the vertex (the last listed), -1 for none
+    for k, ids in enumerate(mesh.parts.values()):
+        part_of[f[ids].ravel()] = k
+    key = np.column_stack([v, part_of])  # a part's seam is welded; two parts that meet are not
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    weld = first[inverse.reshape(-1)].astype(np.int64)  # (n,) the part's first vertex at each position
+    own = vertex_normals(v, f)  # (n, 3) each vertex's normal before welding
+    apart = np.einsum("nd,nd->n", own, own[weld]) < math.cos(WELD_MAX_ANGLE_RAD)  # lips that touch
+    weld[apart] = np.flatnonzero(apart)
     if m == 0:
-        return Surface(np.zeros(0, np.int64), colors, gaze_cos, cover, np.tile(IRIS, (n, 1)))
+        return Surface(np.zeros(0, np.int64), colors, gaze_cos, cover, np.tile(IRIS, (n, 1)), weld)
 
     # 2. films named or transparent are not drawn
     drawn = np.ones(m, dtype=bool)
@@ -354,9 +398,9 @@ def surface(
             cover[piece] = np.clip(1.0 - (height - height.min()) / (2 * LASH_DRAWN_FRACTION * span), 0.0, 1.0)
     colors[lash & ~given] = LASH
     for name, ids in mesh.parts.items():
-        if kinds[name] == "teeth":
-            teeth = np.unique(f[ids])
-            colors[teeth[~given[teeth]]] = TOOTH
+        if kinds[name] in ("teeth", "cavity"):
+            used = np.unique(f[ids])
+            colors[used[~given[used]]] = TOOTH if kinds[name] == "teeth" else CAVITY
 
     # 5. eyeballs of one flat colour get a pupil, an iris and a sclera; a flat iris part from the
     # file (named so, or dark) keeps its colour and lends it to the iris painted on its eyeball
@@ -382,4 +426,4 @@ def surface(
 
     if not drawn.any():
         drawn[:] = True  # nothing but films: draw them rather than nothing
-    return Surface(np.flatnonzero(drawn), colors, gaze_cos, cover, iris_colors)
+    return Surface(np.flatnonzero(drawn), colors, gaze_cos, cover, iris_colors, weld)

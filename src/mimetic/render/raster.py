@@ -22,20 +22,25 @@ import math
 import numpy as np
 
 from mimetic.errors import MeshError
-from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
-from mimetic.render.appearance import NOT_EYE, Surface, eye_albedo, surface
+from mimetic.render.appearance import NOT_EYE, Surface, eye_albedo, shading_normals, surface
 from mimetic.render.camera import Camera, _size, clip_planes
 
 log = logging.getLogger(__name__)
 
-# The shading model, shared with the GL shaders (render.py passes these as uniforms).
-AMBIENT = 0.25
-DIFFUSE = 0.8
+# The shading model, shared with the GL shaders (render.py passes these as uniforms) and with the
+# web viewer's lights (``view.look.page_lights``): change the look here and every picture follows.
+AMBIENT = 0.18
+DIFFUSE = 0.65
 SPECULAR = 0.15
 SHININESS = 40.0
 #: Key light direction in view space (+Z toward the viewer): from the viewer's front-top-right.
 LIGHT_DIR_VIEW = np.array([0.3, 0.6, 1.0]) / np.linalg.norm([0.3, 0.6, 1.0])
+#: A weaker fill light from the front-bottom-left, as a studio's bounce card: without it, skin
+#: facing down (under the nose and the brows) got the ambient term alone, and on a head without
+#: nostrils the base of the nose read as a dark smudge, its edge following the triangles.
+FILL = 0.3
+FILL_DIR_VIEW = np.array([-0.2, -0.6, 1.0]) / np.linalg.norm([-0.2, -0.6, 1.0])
 #: Back faces are lit with a flipped normal and then darkened by this factor, so the inside of
 #: a mouth or an open shell reads as a darker surface rather than a hole.
 BACK_FACE_SHADE = 0.55
@@ -50,9 +55,10 @@ _INSIDE_EPS = 1e-9  # barycentric tolerance so shared edges never leave cracks
 
 
 def shade(normals: np.ndarray, positions: np.ndarray, colors: np.ndarray, front: np.ndarray) -> np.ndarray:
-    """Lambert + Blinn-Phong colour of surface samples, lit from ``LIGHT_DIR_VIEW``.
+    """Lambert + Blinn-Phong colour of surface samples, lit from ``LIGHT_DIR_VIEW`` (and a diffuse
+    fill from ``FILL_DIR_VIEW``).
 
-    ``c = albedo (AMBIENT + DIFFUSE max(n·l, 0)) + SPECULAR max(n·h, 0)^SHININESS``, with
+    ``c = albedo (AMBIENT + DIFFUSE max(n·l, 0) + FILL max(n·f, 0)) + SPECULAR max(n·h, 0)^SHININESS``, with
     ``h = normalize(l + v)`` and ``v`` toward the eye; for back faces ``n`` is flipped and ``c``
     is multiplied by ``BACK_FACE_SHADE``. The specular term is zero where ``n·l <= 0``.
 
@@ -80,7 +86,8 @@ def shade(normals: np.ndarray, positions: np.ndarray, colors: np.ndarray, front:
     ndl = np.maximum(n @ LIGHT_DIR_VIEW, 0.0)  # (k,)
     ndh = np.maximum(np.einsum("kd,kd->k", n, h), 0.0)  # (k,)
     spec = np.where(ndl > 0, SPECULAR * ndh**SHININESS, 0.0)
-    c = colors * (AMBIENT + DIFFUSE * ndl)[:, None] + spec[:, None]
+    ndf = np.maximum(n @ FILL_DIR_VIEW, 0.0)  # (k,)
+    c = colors * (AMBIENT + DIFFUSE * ndl + FILL * ndf)[:, None] + spec[:, None]
     return np.where(front[:, None], c, c * BACK_FACE_SHADE)
 
 
@@ -152,7 +159,7 @@ def rasterize(
     view = camera.view_matrix()
     rotation = view[:3, :3]
     p_view = mesh.vertices @ rotation.T + view[:3, 3]  # (n, 3)
-    n_view = vertex_normals(mesh.vertices, faces) @ rotation.T  # (n, 3)
+    n_view = shading_normals(mesh.vertices, faces, look.weld) @ rotation.T  # (n, 3)
     depth = -p_view[:, 2]  # (n,)
     near, _ = clip_planes(camera, mesh.vertices)
     f = 1.0 / math.tan(math.radians(camera.fov_y_deg) / 2)

@@ -22,7 +22,6 @@ import warnings
 import numpy as np
 
 from mimetic.errors import MimeticWarning, RenderError
-from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.render import appearance, raster
 from mimetic.render.appearance import Surface, surface
@@ -61,7 +60,8 @@ void main() {
 }
 """
 
-# Mirrors raster.shade and appearance.eye_albedo; keep them in step. v_look is (gaze_cos, cover).
+# Mirrors raster.shade and appearance.eye_albedo (whose hard band edges it antialiases); keep them
+# in step. v_look is (gaze_cos, cover).
 _FRAGMENT_SHADER = """
 #version 330
 uniform vec3 cos_iris;      // cos of the iris, limbus and pupil angles
@@ -69,6 +69,8 @@ uniform float limbus_shade;
 uniform vec3 pupil;
 uniform float not_eye;
 uniform vec3 light_dir;
+uniform vec3 fill_dir;
+uniform float fill;
 uniform float ambient;
 uniform float diffuse;
 uniform float specular;
@@ -87,9 +89,13 @@ void main() {
     if (v_look.y < 0.5) discard;
     vec3 albedo = v_col;
     if (v_look.x > 0.5 * not_eye) {
-        if (v_look.x >= cos_iris.z) albedo = pupil;
-        else if (v_look.x >= cos_iris.y) albedo = v_iris;
-        else if (v_look.x >= cos_iris.x) albedo = limbus_shade * v_iris;
+        // eye_albedo's bands, each edge blended over about a pixel (fwidth: gaze_cos's change
+        // per pixel) so the iris and pupil are round, not stair-stepped (MSAA smooths only
+        // triangle edges, and these edges cross triangles)
+        float w = max(fwidth(v_look.x), 1e-7);
+        albedo = mix(albedo, limbus_shade * v_iris, smoothstep(cos_iris.x - w, cos_iris.x + w, v_look.x));
+        albedo = mix(albedo, v_iris, smoothstep(cos_iris.y - w, cos_iris.y + w, v_look.x));
+        albedo = mix(albedo, pupil, smoothstep(cos_iris.z - w, cos_iris.z + w, v_look.x));
     }
     vec3 n;
     if (length(v_nrm) < 1e-12) {
@@ -103,7 +109,8 @@ void main() {
     vec3 h = normalize(light_dir + v);
     float ndl = max(dot(n, light_dir), 0.0);
     float spec = ndl > 0.0 ? specular * pow(max(dot(n, h), 0.0), shininess) : 0.0;
-    vec3 c = albedo * (ambient + diffuse * ndl) + vec3(spec);
+    float ndf = max(dot(n, fill_dir), 0.0);
+    vec3 c = albedo * (ambient + diffuse * ndl + fill * ndf) + vec3(spec);
     if (!gl_FrontFacing) c *= back_shade;
     if (wire_width > 0.0) {
         vec3 d = v_bary / max(fwidth(v_bary), vec3(1e-12));
@@ -189,6 +196,8 @@ class Renderer:
             with ctx:
                 prog = ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
                 prog["light_dir"].value = tuple(raster.LIGHT_DIR_VIEW)
+                prog["fill_dir"].value = tuple(raster.FILL_DIR_VIEW)
+                prog["fill"].value = raster.FILL
                 prog["ambient"].value = raster.AMBIENT
                 prog["diffuse"].value = raster.DIFFUSE
                 prog["specular"].value = raster.SPECULAR
@@ -271,7 +280,8 @@ class Renderer:
         Parameters
         ----------
         mesh : Mesh
-            Smooth-shaded with area-weighted vertex normals, both sides lit (back faces darker);
+            Smooth-shaded with area-weighted vertex normals (shared by vertices at one rest position,
+            ``Surface.weld``), both sides lit (back faces darker);
             drawn and coloured as ``look`` says.
         size : int or (width, height)
         wireframe : bool
@@ -312,7 +322,7 @@ class Renderer:
         faces = drawn.ravel()  # (3m',) corner → vertex
         corners = np.empty((len(faces), _CORNER_FLOATS), np.float32)
         corners[:, 0:3] = mesh.vertices[faces]
-        corners[:, 3:6] = vertex_normals(mesh.vertices, drawn)[faces]
+        corners[:, 3:6] = appearance.shading_normals(mesh.vertices, drawn, look.weld)[faces]
         corners[:, 6:9] = look.colors[faces]
         corners[:, 9:12] = np.tile(np.eye(3, dtype=np.float32), (len(drawn), 1))
         corners[:, 12:15] = look.iris_colors[faces]

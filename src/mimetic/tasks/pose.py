@@ -70,6 +70,7 @@ def run(
         rig, options.expressions, dict(options.values), intensity=options.intensity, library=library
     )
     if deform is None:
+        announce(progress, f"prepare {options.engine}")  # at once: fem and tissue take seconds
         engine = prepared.engine(options.engine, stage(progress, f"prepare {options.engine}"))
         deform = engine.deform
     announce(progress, "pose")

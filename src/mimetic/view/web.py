@@ -67,15 +67,36 @@ COLOR_LEVELS = 16
 MAX_PAINTED_COLORS = 6
 """A part with more distinct face colours than this is textured and drawn in one colour."""
 
-MAIN_COLOR_SHARE = 0.8
-"""A part whose main colour covers this share of its faces is drawn in one colour."""
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+"""Rec. 709 weights: which of a face's corner colours is the darkest."""
 
 PREPARE_NOTE = {"fem": "about 10 s", "tissue": "half a minute to two minutes (it is baked)"}
 """How long an engine takes to prepare, as the page says (benchmarks/bench_view.py: fem 9 s on the
-default head and 14 s on ICT; tissue 29 s and 100 s)."""
+default head and 14 s on ICT; tissue 29 s and 100 s; measured again on the default head with
+another job on the 2 cores: wire 0.2 s, vector 0.3 s, fem 7.6 s, tissue 116 s). Engines not
+listed are ready in under a second."""
 
 SLIDER_STEPS = 200
 """Steps across a slider's range."""
+
+KEY_GUARD_JS = """
+if (!window.mimeticKeyGuard) {
+  window.mimeticKeyGuard = true;
+  const cameraKeys = new Set(["KeyW", "KeyA", "KeyS", "KeyD", "KeyQ", "KeyE",
+                              "ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight"]);
+  document.body.addEventListener("keydown", (event) => {
+    const target = event.target;
+    if (cameraKeys.has(event.code) && target instanceof Element && target.closest('[role="slider"]')) {
+      event.stopPropagation();
+    }
+  });
+}
+"""
+"""Keeps keys pressed on a focused slider from moving the camera. viser's camera listens for the
+arrow keys (and WASDQE) on ``document`` and skips text fields only, but a Mantine slider's
+focusable thumb is a ``div role=slider``, so an arrow key moved the slider and turned the head.
+This listener on ``body`` runs after React's (on ``#root``, inside it) has moved the slider and
+stops the key before it reaches ``document``."""
 
 
 class ViewError(MimeticError, RuntimeError):
@@ -95,10 +116,12 @@ def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, in
 
     One piece per part and colour (faces no part names form "surface"), keeping only the faces
     ``look`` (a ``render.appearance.Surface``) draws, so eye films and lash tips stay hidden. A part
-    painted in a few flat colours (an eyeball's sclera, iris and pupil) is split by face colour; a
-    textured or tinted one (the skin with its lips) takes its median colour. An eyeball the look paints by the
-    angle from its gaze axis is split into sclera, iris and pupil pieces by that angle. The pieces
-    ride on the mesh's vertices, so an iris turns with its eye.
+    painted in a few flat colours (an eyeball's sclera, iris and pupil; the skin with its lips) is
+    split by face colour, a face across a colour edge taking its darkest corner's colour: the edge
+    then runs along a loop of vertices (a round iris, the lips' border), where a majority of
+    corners zigzags from one face to the next. A textured part takes its median colour. An eyeball
+    the look paints by the angle from its gaze axis is split into sclera, iris and pupil pieces by
+    that angle. The pieces ride on the mesh's vertices, so an iris turns with its eye.
     """
     from mimetic.render.appearance import IRIS_ANGLE_RAD, NOT_EYE, PUPIL, PUPIL_ANGLE_RAD
 
@@ -122,14 +145,13 @@ def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, in
         gaze = look.gaze_cos[corners].mean(axis=1)
         if (look.gaze_cos[corners] == NOT_EYE).any():
             corner_levels = np.round(look.colors[corners] * COLOR_LEVELS)  # (k, 3 corners, rgb)
-            same = (corner_levels[:, 1] == corner_levels[:, 2]).all(axis=1)  # else corner 0 is the majority
-            levels = np.where(same[:, None], corner_levels[:, 1], corner_levels[:, 0])  # or a tie
+            darkest = (corner_levels @ LUMINANCE).argmin(axis=1)  # (k,)
+            levels = corner_levels[np.arange(len(face_ids)), darkest]  # (k, rgb)
             distinct, which = np.unique(levels, axis=0, return_inverse=True)
-            counts = np.bincount(which.ravel())
-            if len(distinct) > MAX_PAINTED_COLORS or counts.max() >= MAIN_COLOR_SHARE * len(face_ids):
-                # a texture, or a tint (lips on the skin) that flat pieces would draw as a jagged edge
+            if len(distinct) > MAX_PAINTED_COLORS:  # a texture
                 pieces.append((name, face_ids, rgb(np.median(look.colors[np.unique(corners)], axis=0))))
                 continue
+            counts = np.bincount(which.ravel())
             order = np.argsort(-counts)  # the part's main colour keeps its name
             for rank, k in enumerate(order):
                 piece = name if rank == 0 else f"{name}_{rank}"
@@ -144,7 +166,39 @@ def display_pieces(mesh, look) -> list[tuple[str, np.ndarray, tuple[int, int, in
         ):
             if mask.any():
                 pieces.append((piece, face_ids[mask], rgb(color)))
-    return pieces
+    return _welded(mesh.faces, pieces)
+
+
+def _welded(
+    faces: np.ndarray, pieces: list[tuple[str, np.ndarray, tuple[int, int, int]]]
+) -> list[tuple[str, np.ndarray, tuple[int, int, int]]]:
+    """``pieces`` with those of one colour that share a vertex joined (under the first one's name).
+
+    The browser computes each piece's normals from its own faces, so a border between two pieces
+    is a shading seam: between parts of one colour that meet (ICT's face and head-and-neck parts,
+    across the forehead) it had no reason to be there.
+    """
+    groups: list[list[int]] = []
+    vertices: list[np.ndarray] = []
+    for k, (_, face_ids, color) in enumerate(pieces):
+        used = np.unique(faces[face_ids])
+        for g, group in enumerate(groups):
+            if pieces[group[0]][2] == color and np.isin(used, vertices[g]).any():
+                group.append(k)
+                vertices[g] = np.union1d(vertices[g], used)
+                break
+        else:
+            groups.append([k])
+            vertices.append(used)
+    return [
+        (pieces[g[0]][0], np.sort(np.concatenate([pieces[k][1] for k in g])), pieces[g[0]][2]) for g in groups
+    ]
+
+
+def prepare_text(name: str, done: int, total: int, elapsed_s: float) -> str:
+    """The progress of engine ``name``'s preparation as the page shows it, e.g. "preparing tissue:
+    12/40, 31 s" (its stages, then its bake's poses, each counted by ``Deformers.prepare``)."""
+    return f"preparing {name}: {done}/{total}, {elapsed_s:.0f} s"
 
 
 def check_port(host: str, port: int) -> None:
@@ -187,6 +241,14 @@ def _viser():
     except ImportError as error:
         raise MissingExtraError(f"the viewer needs viser ({error}); pip install 'mimetic[view]'") from None
     return viser
+
+
+def run_javascript(server, source: str) -> None:
+    """Run ``source`` in every page of ``server``, now and on every page opened later (viser's
+    message for it is kept in the buffer each new client replays; viser has no public call)."""
+    from viser._messages import RunJavascriptMessage
+
+    server._websock_server.queue_message(RunJavascriptMessage(source=source))
 
 
 def _escape(text: str) -> str:
@@ -232,6 +294,7 @@ class Viewer:
         self.session = None
         self.timeline = None
         self.engine = engine
+        self.preparing: str | None = None  # the progress of an engine being prepared
         self.facing = next(iter(FACINGS))
         self.turn = np.eye(3)
         self.parts: list[tuple[np.ndarray, object]] = []
@@ -306,6 +369,8 @@ class Viewer:
     def _build(self) -> None:
         gui, scene = self.server.gui, self.server.scene
         scene.set_up_direction("+y")
+        run_javascript(self.server, KEY_GUARD_JS)
+        self._add_lights()
         self.head = scene.add_frame("/head", show_axes=False)
         self._add_meshes()
         self.server.on_client_connect(self._frame_camera)
@@ -334,12 +399,30 @@ class Viewer:
             with tabs.add_tab("Export"):
                 self._export_tab()
 
+    def _add_lights(self) -> None:
+        """The renderers' lights (``look.page_lights``) in place of viser's own and its
+        environment map, so the page looks like its PNG export."""
+        from mimetic.view.look import page_lights
+
+        scene = self.server.scene
+        scene.configure_default_lights(False)
+        scene.configure_environment_map(None)
+        lights = page_lights()
+        scene.add_light_ambient("/lights/ambient", intensity=lights.ambient)
+        size = float(np.ptp(self.mesh.vertices, axis=0).max())
+        for k, (direction, intensity) in enumerate(lights.directional):
+            position = tuple(float(x) for x in 10 * size * direction)  # shines toward the origin
+            scene.add_light_directional(
+                f"/lights/directional_{k}", intensity=intensity, position=position, cast_shadow=False
+            )
+
     def _status_text(self) -> str:
         what = self.source.name
         n = self.mesh.n_vertices
         if self.session is None:
             return f"**{what}**: {n:,} vertices, {self.mesh.units or 'unknown units'}; pick landmarks"
-        return f"**{what}**: {n:,} vertices · engine {self.engine} · pose {self.last_update_ms:.1f} ms"
+        text = f"**{what}**: {n:,} vertices · engine {self.engine} · pose {self.last_update_ms:.1f} ms"
+        return text if self.preparing is None else f"{text} · {self.preparing}"
 
     def _add_meshes(self) -> None:
         from mimetic.render.appearance import surface
@@ -611,16 +694,26 @@ class Viewer:
             self.engine = name
             self._refresh()
             return
-        wait = PREPARE_NOTE.get(name, "a few seconds")
+        wait = PREPARE_NOTE.get(name, "under a second")
         notes = self._notify(f"Preparing the {name} engine", f"This takes {wait}, once.", loading=True)
+        started = time.perf_counter()
+
+        def progress(done: int, total: int) -> None:
+            """The preparation's stages, then its bake's poses: in the notes and the status line."""
+            self.preparing = prepare_text(name, done, total, time.perf_counter() - started)
+            for note in notes:
+                note.body = f"This takes {wait}, once. {self.preparing}"
+            self.status.content = self._status_text()
 
         def work() -> None:
             try:
-                self.deformers.prepare(name)
+                self.deformers.prepare(name, progress)
             except MimeticError as error:
                 self._notify(f"The {name} engine failed", str(error), color="red")
                 return
             finally:
+                self.preparing = None
+                self.status.content = self._status_text()
                 for note in notes:
                     note.remove()
             with self._lock:
