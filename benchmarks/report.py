@@ -38,14 +38,15 @@ def markdown(columns: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
 
 
 def show(title: str, columns: Sequence[str], rows: Sequence[Sequence[str]], caption: str = "") -> str:
-    """Print a rich table (``title`` above, ``caption`` below); return it as Markdown (table only)."""
+    """Print a rich table (``title`` above, ``caption`` below); return it as Markdown (the table,
+    then the caption as a paragraph; the title is left to the document's prose)."""
     table = Table(title=title, title_justify="left", caption=caption or None, caption_justify="left")
     for name in columns:
         table.add_column(name)
     for row in rows:
         table.add_row(*(str(c) for c in row))
     console.print(table)
-    return markdown(columns, rows)
+    return markdown(columns, rows) + (f"\n\n{caption}" if caption else "")
 
 
 def stamp() -> str:
