@@ -60,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+import report
 from bench_basis import print_table, round_robin, table
 from mimetic.engines import make_engine
 from mimetic.speech.align import align_audio, read_wav
@@ -210,7 +211,7 @@ def bench_alignment(shared: Path | None, rounds: int) -> None:
         f"   time = median of {rounds} call(s) after one untimed call; RTF = time / audio.\n"
         "   naive rows: naive_timings of the transcript alone (no audio, from 0 s), the no-audio baseline."
     )
-    table(header, rows)
+    report.save("speech", [table(header, rows, "1. Alignment accuracy")])
 
 
 # --------------------------------------------------------------------------- 2. coarticulation quality
