@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import pickle
 import tempfile
 import time
 from dataclasses import dataclass
@@ -45,6 +46,7 @@ import numpy as np
 import trimesh
 
 import report
+from mimetic.atomic import atomic_write
 from mimetic.mesh.io import save_mesh
 from mimetic.mesh.model import Mesh
 from mimetic.testing import ict_landmarks, load_ict, shared_data_dir
@@ -183,8 +185,6 @@ def subdivided(mesh: Mesh, levels: int) -> Mesh:
 
 def write_input(mesh: Mesh, landmarks, folder: Path) -> None:
     """The files the stages start from: the head as PLY and as .npy arrays, the landmarks pickled."""
-    import pickle
-
     save_mesh(mesh, folder / "head.ply")
     np.save(folder / "vertices.npy", mesh.vertices)
     np.save(folder / "faces.npy", mesh.faces)
@@ -295,7 +295,8 @@ def main() -> None:
     )
     report.save("memory", [markdown])
     raw = {stage: [c.__dict__ for c in row] for stage, row in cells.items()}
-    (report.OUT / "memory.json").write_text(json.dumps({"sizes": sizes, "cells": raw}, indent=1))
+    with atomic_write(report.OUT / "memory.json", "w") as handle:
+        json.dump({"sizes": sizes, "cells": raw}, handle, indent=1)
     report.console.print(f"benchmark wall time {time.perf_counter() - begin:.0f} s")
 
 
