@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from mimetic.atomic import atomic_write
@@ -44,7 +45,7 @@ def show(title: str, columns: Sequence[str], rows: Sequence[Sequence[str]], capt
     for name in columns:
         table.add_column(name)
     for row in rows:
-        table.add_row(*(str(c) for c in row))
+        table.add_row(*(escape(str(c)) for c in row))  # a cell's [brackets] are text, not markup
     console.print(table)
     return markdown(columns, rows) + (f"\n\n{caption}" if caption else "")
 
