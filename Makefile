@@ -26,8 +26,14 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
 	$(BIN)/ruff format --check src tests benchmarks examples
 
+# Each benchmark prints its tables and writes them to benchmarks/out/NAME.md; write_docs.py then copies
+# them between the <!-- bench:NAME --> markers of docs/benchmarks.md (sections not run keep theirs),
+# also after a failure, which still fails the target.
 bench: $(STAMP)
-	for b in render engines basis rig export speech capture batch view live; do $(BIN)/python benchmarks/bench_$$b.py || exit 1; done
+	rm -f benchmarks/out/*.md
+	status=0; for b in render engines basis rig export speech capture batch view live memory; do \
+		$(BIN)/python benchmarks/bench_$$b.py || { status=1; echo "bench_$$b.py failed"; }; done; \
+	$(BIN)/python benchmarks/write_docs.py && exit $$status
 
 clean:
 	rm -rf $(VENV) mimetic-demo

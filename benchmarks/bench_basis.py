@@ -34,6 +34,7 @@ from collections.abc import Callable
 import numpy as np
 
 import mimetic.engines.basis as basis_module
+import report
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.engines.basis import Basis, Corrective, evaluate_basis
@@ -231,17 +232,14 @@ def round_robin(cases: dict[str, tuple[Callable[[], object], int]], rounds: int)
     return {name: statistics.median(s) for name, s in samples.items()}
 
 
-def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
-    """An aligned table in ``print_table``'s style: cells separated by " | ", a rule under the header."""
-    widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header))]
-    for k, row in enumerate([header, *rows]):
-        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
-        if k == 0:
-            print("-+-".join("-" * w for w in widths))
+def table(header: tuple[str, ...], rows: list[tuple[str, ...]], title: str = "") -> str:
+    """A table of formatted cells printed with rich; returned as Markdown (``report.show``)."""
+    return report.show(title, header, rows)
 
 
-def print_table(rows: list[tuple[str, float, str, float | None]]) -> None:
-    """Rows (case, s per frame, baseline label, baseline s per frame or None) as one aligned table."""
+def print_table(rows: list[tuple[str, float, str, float | None]], title: str = "") -> str:
+    """Rows (case, s per frame, baseline label, baseline s per frame or None) as one table,
+    printed with rich; returned as Markdown."""
     header = ("case", "median time", "throughput", "baseline", "ratio")
     body = [
         (
@@ -253,11 +251,7 @@ def print_table(rows: list[tuple[str, float, str, float | None]]) -> None:
         )
         for case, t, label, base in rows
     ]
-    widths = [max(len(r[k]) for r in [header, *body]) for k in range(5)]
-    for k, row in enumerate([header, *body]):
-        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)))
-        if k == 0:
-            print("-+-".join("-" * w for w in widths))
+    return table(header, body, title)
 
 
 # --------------------------------------------------------------------------- main

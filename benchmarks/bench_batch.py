@@ -31,6 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import report
 from bench_rig import print_table
 from mimetic.batch import rig_many
 from mimetic.fit.landmarks import write_landmarks
@@ -180,23 +181,26 @@ def main() -> None:
             f"{per_task / job_s:.1e}",
         ),
     ]
-    print_table(
+    measured = print_table(
         f"batch rig: {n} generated heads of {args.resolution:,} skin vertices; rig, fit report, picture each",
         ("case", "time", "throughput", "baseline", "ratio"),
         rows,
     )
-    print(
-        f"   scaling goal ≥ {SCALING_GOAL:g}× on 2 cores: {one / two:.2f}× — "
+    goal = (
+        f"Scaling goal ≥ {SCALING_GOAL:g}× on 2 cores: {one / two:.2f}× — "
         f"{'met' if one / two >= SCALING_GOAL else 'NOT met'}; a worker's first head takes {cold:.1f} s "
         f"longer (imports, numba's cache); {mesh_mb:.2f} MB in and {out_mb:.2f} MB out per head"
     )
+    print(f"   {goal}")
+    report.save("batch", [measured, goal + "."])
     per_core_s = 2 * two / n
-    print_table(
+    paper = print_table(
         f"{PAPER_HEADS:,} heads on paper (each core as fast as these: {per_core_s:.2f} s per head, the "
         "2-worker run's wall time per head × 2)",
         ("cluster", "throughput", f"{PAPER_HEADS:,} heads", "shared filesystem"),
         estimate(per_core_s, mesh_mb + out_mb, per_task),
     )
+    report.save("batch-paper", [paper])
     print(f"\nbenchmark wall time {time.perf_counter() - begin:.0f} s")
 
 

@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+import report
 from bench_basis import GOAL_BATCH_FPS, GOAL_SINGLE_FPS, Dense, error_bound, print_table, round_robin
 from mimetic.engines import bake, evaluate_basis, make_engine
 from mimetic.engines.bake import random_poses
@@ -113,7 +114,7 @@ def main() -> None:
         f"{len(basis.correctives)} correctives; load average {load:.2f} at start, {os.getloadavg()[0]:.2f} "
         f"at the end (2 cores); times per frame; ratio = time / baseline (below 1 is faster)"
     )
-    print_table(rows)
+    report.save("engines", [print_table(rows, "Engines and the baked basis on the default head")])
     print(f"bake of the wire engine: {bake_s:.1f} s; " + "; ".join(baked.report.lines()))
     error = np.abs(evaluate_basis(basis, clip, dtype=np.float32) - evaluate_basis(basis, clip)).max(
         axis=(1, 2)

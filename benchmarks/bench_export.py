@@ -16,6 +16,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
+import report
 from bench_render import median_time  # the same timing helper as the render benchmark
 from mimetic.animate.keyframes import from_expressions
 from mimetic.engines import make_engine
@@ -87,12 +88,14 @@ def main() -> None:
                 (t / n_video) / FRAME_GOAL_S,
             )
         )
-    width = max(len(r[0]) for r in rows)
-    print(f"{'case':{width}} | median time | throughput      | baseline          | ratio")
-    print(f"{'-' * width}-+-------------+-----------------+-------------------+------")
-    for case, t, throughput, baseline, ratio in rows:
-        ratio_text = "" if ratio != ratio else f"{ratio:.3f}"
-        print(f"{case:{width}} | {t:9.3f} s | {throughput:15} | {baseline:17} | {ratio_text}")
+    body = [
+        (case, f"{t:.3f} s", throughput, baseline, "" if ratio != ratio else f"{ratio:.3f}")
+        for case, t, throughput, baseline, ratio in rows
+    ]
+    table = report.show(
+        "Export of the default head's rig", ("case", "median time", "throughput", "baseline", "ratio"), body
+    )
+    report.save("export", [table])
 
 
 if __name__ == "__main__":

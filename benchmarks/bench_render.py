@@ -15,6 +15,7 @@ import statistics
 import time
 from collections.abc import Callable
 
+import report
 from mimetic.head.model import make_head
 from mimetic.mesh.model import Mesh
 from mimetic.view import Renderer, frame_camera, rasterize
@@ -98,15 +99,13 @@ def main() -> None:
         )
         for case, t, tris, base, base_s in rows
     ]
-    widths = [max(len(r[k]) for r in [header, *body]) for k in range(5)]
-    print(
-        f"512x512 renders of the generated head; ratio = median / baseline (below 1 is better); "
-        f"goal {GOAL_S} s per image"
+    table = report.show(
+        f"512x512 renders of the generated head; goal {GOAL_S} s per image",
+        header,
+        body,
+        "ratio = median / baseline (below 1 is better)",
     )
-    for k, row in enumerate([header, *body]):
-        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)))
-        if k == 0:
-            print("-+-".join("-" * w for w in widths))
+    report.save("render", [table])
 
 
 if __name__ == "__main__":

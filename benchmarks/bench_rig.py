@@ -57,6 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
+import report
 from mimetic.capture import prepare_solver
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
@@ -119,14 +120,10 @@ REASONS = {
 # --------------------------------------------------------------------------- printing
 
 
-def print_table(title: str, header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
-    """One aligned text table: a title, a header and its rows (cells already formatted)."""
-    widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header))]
-    print(f"\n{title}")
-    for k, row in enumerate([header, *rows]):
-        print(" | ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
-        if k == 0:
-            print("-+-".join("-" * w for w in widths))
+def print_table(title: str, header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
+    """One table (a title, a header and its rows, cells already formatted) printed with rich;
+    returned as Markdown (``report.show``)."""
+    return report.show(title, header, rows)
 
 
 def verdict(ok: bool) -> str:
@@ -233,12 +230,14 @@ def bench_rig_head(mesh: Mesh, landmarks: Landmarks, landmarks68: Landmarks, rep
         rows.append(
             (f"auto_landmarks + rig_head: skipped ({type(error).__name__}: {error})"[:110], *[""] * 5)
         )
-    print_table(
+    table = print_table(
         "a. rig_head on the ICT neutral head (26,719 vertices, cm); residual = fit report, matched skin",
         ("case", "median time", "throughput", "residual mean / p95 / max %", "baseline", "ratio"),
         rows,
     )
-    print(f"   goal ≤ {GOAL_RIG_S:.0f} s end to end: {seconds(t)} — {verdict(t <= GOAL_RIG_S)}")
+    goal = f"Goal ≤ {GOAL_RIG_S:.0f} s end to end: {seconds(t)} — {verdict(t <= GOAL_RIG_S)}"
+    print(f"   {goal}")
+    report.save("rig", [table, goal + "."])
     return result
 
 
@@ -317,7 +316,7 @@ def bench_nricp(mesh: Mesh, landmarks: Landmarks, result, repeats: int, quick: b
         ),
         ("trimesh nricp_amberg, default steps, 1 run", seconds(t_nricp), *cells(theirs), "", ""),
     ]
-    print_table(
+    table = print_table(
         f"b. registration against trimesh.registration.nricp_amberg on the same inputs (reference "
         f"resolution {start.resolution:,}; {len(fit.surface.triangles):,} target triangles; {int(on.sum())} "
         "landmarks); residual % of the fitted skin's diagonal, ratio = time / nricp time",
@@ -335,12 +334,14 @@ def bench_nricp(mesh: Mesh, landmarks: Landmarks, result, repeats: int, quick: b
     ours_face = residual_pct(fit, registration.vertices, face)
     theirs_face = residual_pct(fit, theirs, face)
     speedup = t_nricp / t_reg
-    print(
-        f"   register() reproduces the fit's skin to {same:.2g} cm. Goal: ours ≥ {GOAL_SPEEDUP:.0f}× faster "
+    goal = (
+        f"Goal: ours ≥ {GOAL_SPEEDUP:.0f}× faster "
         f"at equal or lower residual: {speedup:.1f}× faster (registration only; {t_nricp / t_end:.1f}× end "
         f"to end), face mean residual {ours_face[0]:.3f} % vs {theirs_face[0]:.3f} % — "
         f"{verdict(speedup >= GOAL_SPEEDUP and ours_face[0] <= theirs_face[0])}"
     )
+    print(f"   register() reproduces the fit's skin to {same:.2g} cm. {goal}")
+    report.save("rig-nricp", [table, goal + "."])
 
 
 def bench_fidelity(mesh: Mesh, result, root: Path, quick: bool) -> None:

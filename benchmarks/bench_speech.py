@@ -77,6 +77,7 @@ from pathlib import Path
 
 import numpy as np
 
+import report
 from bench_basis import print_table, round_robin, table
 from mimetic.engines import make_engine
 from mimetic.errors import SpeechError
@@ -98,6 +99,8 @@ from mimetic.speech.timings import boundary_errors, load_timings, naive_timings
 from mimetic.speech.visemes import channel_group, phone_targets, viseme_map
 from mimetic.testing import shared_data_dir, small_rig
 
+TABLES: list[str] = []
+"""The tables written to ``out/speech.md`` (``report.save``), in order."""
 LIBRIVOX = "speech/librivox/sense_and_sensibility_01_austen_64kb-"
 UTTERANCES = ("0870", "0880", "0890", "0920", "0930")
 BOBBY = "speech/praatio/bobby"
@@ -238,7 +241,7 @@ def bench_alignment(shared: Path | None, rounds: int) -> None:
         f"   time = median of {rounds} call(s) after one untimed call; RTF = time / audio.\n"
         "   naive rows: naive_timings of the transcript alone (no audio, from 0 s), the no-audio baseline."
     )
-    table(header, rows)
+    TABLES.append(table(header, rows, "1. Alignment accuracy"))
     return items
 
 
@@ -371,7 +374,7 @@ def bench_audio_alone(rig, items: list | None) -> None:
         "   Rhubarb-style rows compare shape segments (so 'matched' counts shapes, not phones);\n"
         "   shape frames: 10 ms frames whose Rhubarb shape equals the reference's; time: median per call."
     )
-    table(header, rows)
+    TABLES.append(table(header, rows, "1b. Audio alone"))
 
 
 def _with_tail_s(timings: PhoneTimings) -> PhoneTimings:
@@ -419,7 +422,7 @@ def bench_wrong_transcripts(items: list | None) -> None:
         correct += [] if scores[0] is None else [scores[0]]
         wrong += [s for s in scores[1:] if s is not None]
         rows.append((name, *("no alignment" if s is None else f"{s:.1f}" for s in scores)))
-    table(header, rows)
+    TABLES.append(table(header, rows, "1c. Wrong transcripts"))
     print(
         f"   threshold align.MISMATCH_SCORE = {MISMATCH_SCORE:g}: correct ones ≥ {min(correct):.1f} "
         f"(all pass: {'yes' if min(correct) > MISMATCH_SCORE else 'NO'}), wrong ones ≤ {max(wrong):.1f} "
@@ -521,7 +524,7 @@ def bench_coarticulation(rig, shared: Path | None) -> None:
         "   roughness = summed squared second difference of the lips and jaw channels;\n"
         "   ratio = coarticulate / linear_clip roughness (below 1 is smoother)"
     )
-    table(header, rows)
+    TABLES.append(table(header, rows, "2. Coarticulation"))
     targets = phone_targets(viseme_map("en"), list(JAW_VOWELS), rig)[:, jaw]
     parts = []
     for method in ("coart", "linear"):
@@ -651,6 +654,7 @@ def main() -> None:
     bench_wrong_transcripts(items)
     bench_coarticulation(rig, shared)
     bench_speed(rig, 5 if args.quick else 15)
+    report.save("speech", TABLES)
     wall = time.perf_counter() - begin
     print(f"\nload average at the end {os.getloadavg()[0]:.2f}; benchmark wall time {wall:.0f} s")
 

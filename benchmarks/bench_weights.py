@@ -37,6 +37,7 @@ import warnings
 
 import numpy as np
 
+import report
 from bench_quality import Case, Heads
 from bench_rig import print_table
 from mimetic.engines.skinning import bone_transforms
@@ -155,7 +156,7 @@ def main() -> None:
     ids = QUICK_IDENTITIES if args.quick else IDENTITIES
     groups += [("check", heads.identity(seed, sigma)) for seed, sigma in ids]
     rows = [(group, *row) for group, case in groups for row in measure(case, heads, cavity)]
-    print_table(
+    weights = print_table(
         "skin weights vs the weights ICT's captured jawOpen / eyeBlink imply "
         "(mean |difference| %, where the bone moves; the Maskle paper: 2.63 % mean)",
         (
@@ -171,12 +172,15 @@ def main() -> None:
         ),
         rows,
     )
+    means = []
     for group in ("calibration", "check"):
         sel = [float(r[4]) for r in rows if r[0] == group and r[4]]
         base = [float(r[5]) for r in rows if r[0] == group and r[5]]
-        print(
+        means.append(
             f"{group}: rig {np.mean(sel):.2f} % mean over bones and heads (no weight {np.mean(base):.2f} %)"
         )
+        print(means[-1])
+    report.save("weights", [weights, "; ".join(means) + "."])
     print(f"\nbenchmark wall time {time.perf_counter() - begin:.0f} s")
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -304,3 +305,16 @@ def test_peak_rss_counts_the_child_not_the_large_caller():
     assert float(measured.stdout) == 50_000_000
     assert 0.35 < measured.peak_gib < 0.8
     del ballast
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS caps the address space on Linux")
+def test_peak_rss_with_an_address_space_cap_fails_the_child_not_the_caller():
+    """A child capped at 1 GiB that asks for 2 GiB raises MemoryError in itself; the caller gets a
+    RuntimeError naming it, and a child within its cap is measured as without one."""
+    from mimetic.testing.memory import peak_rss
+
+    with pytest.raises(RuntimeError, match="MemoryError"):
+        peak_rss("import numpy as np; a = np.ones(2**28); print(a.sum())", max_address_space=2**30)
+    measured = peak_rss("import numpy as np; a = np.ones(2**24); print(a.sum())", max_address_space=2**30)
+    assert float(measured.stdout) == 2**24
+    assert 0.1 < measured.peak_gib < 1.0

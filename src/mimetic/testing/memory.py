@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,10 +43,29 @@ class Measured:
         return self.peak_bytes / 2**30
 
 
-def peak_rss(code: str, *, cwd: str | os.PathLike[str] | None = None, timeout_s: float = 1800) -> Measured:
+def _address_space_cap(max_bytes: int) -> Callable[[], None]:
+    """A ``preexec_fn`` that limits the child's virtual address space to ``max_bytes`` (POSIX)."""
+
+    def cap() -> None:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (max_bytes, max_bytes))
+
+    return cap
+
+
+def peak_rss(
+    code: str,
+    *,
+    cwd: str | os.PathLike[str] | None = None,
+    timeout_s: float = 1800,
+    max_address_space: int | None = None,
+) -> Measured:
     """Run ``code`` (Python source) in a new interpreter and measure its peak memory.
 
-    Raises ``RuntimeError`` with the child's stderr when it fails.
+    ``max_address_space`` (bytes, POSIX) caps the child's virtual memory (``RLIMIT_AS``): work that
+    would need more fails in the child (a ``MemoryError`` in its stderr) instead of exhausting the
+    machine. Raises ``RuntimeError`` with the child's stderr when it fails.
     """
     run = subprocess.run(
         [sys.executable, "-c", code + "\n" + _TRAILER],
@@ -54,6 +74,7 @@ def peak_rss(code: str, *, cwd: str | os.PathLike[str] | None = None, timeout_s:
         text=True,
         timeout=timeout_s,
         check=False,
+        preexec_fn=None if max_address_space is None else _address_space_cap(max_address_space),
     )
     lines = run.stderr.splitlines()
     peak = [line for line in lines if line.startswith("PEAK_RSS_KB ")]
