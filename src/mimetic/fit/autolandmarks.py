@@ -10,6 +10,9 @@ bare surface points (e.g. all 468 for a capture marker layout).
 
 This is the one module of ``fit`` that renders (``mimetic.render``, which sits below ``fit``);
 mediapipe itself is imported only when ``auto_landmarks`` first runs (see ``mimetic.fit.detect``).
+
+Over 600 lines because the views it renders, the detection in each and the lifting of 2D points
+onto the surface are one chain with shared cameras.
 """
 
 from __future__ import annotations

@@ -26,6 +26,9 @@ written with fixed timestamps, so the same rig always gives the same bytes.
 ``load_rig`` raises ``RigFormatError`` for a file it cannot read (missing, not a zip, truncated,
 not a rig, a newer version, a missing or mistyped field, a wrong array) and ``RigError`` when the
 contents are readable but inconsistent (``validate_rig``).
+
+Over 600 lines because the format's encoder and decoder of every element sit side by side, so a
+field's write and read are changed together.
 """
 
 from __future__ import annotations
