@@ -19,7 +19,8 @@ Writes, into one folder (named steps report progress as they go):
   (``head_arkit.glb``);
 * **talking head**: a sentence lip-synced with coarticulation, blinks and saccades
   (``talk.clip.json``), rendered with its sound (``talk.mp4``, spoken by espeak-ng into
-  ``talk.wav`` when that program is installed);
+  ``talk.wav`` when that program is installed; with ``all``, the same sound lip-synced from the
+  audio alone, without its text: ``talk_audio_only.mp4``);
 * **capture**: the default head plays the expression sequence while its head turns and nods
   (``capture.mp4``); MediaPipe tracks it and the landmarks are solved back into channels with the
   head's motion removed (``capture.clip.json``; ``capture_compare.png`` sets the performed and the
@@ -92,7 +93,7 @@ def run(
         engines[name] = make_engine(default_rig, name, progress=stage(progress, f"prepare {name}"))
     files += _action_sheets(default_rig, engines, out, renderer, say)
     files += _expressions(default_rig, engines["wire"], out / "expressions", SIZE, renderer, say)
-    animated, notes = _animation(default_rig, other_rig, engines["wire"], out, renderer, say)
+    animated, notes = _animation(default_rig, other_rig, engines["wire"], out, renderer, say, options.all)
     files += animated
     summary = (
         f"{len(files)} files: {len(rigs)} heads rigged, {len(engines)} engines, animation, speech, capture"
@@ -152,10 +153,11 @@ TALK = (
 
 
 def _animation(
-    rig: Rig, other: Rig, engine: Engine, out: Path, renderer: Renderer, say: Progress
+    rig: Rig, other: Rig, engine: Engine, out: Path, renderer: Renderer, say: Progress, audio_only: bool
 ) -> tuple[list[Path], list[str]]:
-    """An expression sequence as a clip, an animated GLB, an MP4; the ARKit-52 GLB; a talking head; the
-    sequence captured from ``rig`` and played on ``other``."""
+    """An expression sequence as a clip, an animated GLB, an MP4; the ARKit-52 GLB; a talking head (and,
+    with ``audio_only``, one from its sound alone); the sequence captured from ``rig`` and played on
+    ``other``."""
     from mimetic.animate.clipfiles import save_clip
     from mimetic.animate.keyframes import from_expressions
     from mimetic.engines.bake import bake
@@ -184,7 +186,7 @@ def _animation(
     )
     say("ARKit-52 shapes", 0, 1)
     files.append(export_glb(rig, out / "head_arkit.glb", morph_targets=arkit_shapes(engine)))
-    talk, notes = _talk(rig, basis, out, renderer, say)
+    talk, notes = _talk(rig, basis, out, renderer, say, audio_only)
     captured = _capture(rig, other, basis, clip, out, renderer, say)
     return files + talk + captured, notes
 
@@ -273,10 +275,13 @@ def _compare(rig: Rig, basis, truth, solved, path: Path, renderer: Renderer) -> 
     return save_png(contact_sheet(tiles, columns=len(CAPTURE_READBACK)), path)
 
 
-def _talk(rig: Rig, basis, out: Path, renderer: Renderer, say: Progress) -> tuple[list[Path], list[str]]:
+def _talk(
+    rig: Rig, basis, out: Path, renderer: Renderer, say: Progress, audio_only: bool
+) -> tuple[list[Path], list[str]]:
     """``TALK`` lip-synced (``talk.clip.json``) and rendered with its sound (``talk.mp4``): spoken by
     the espeak-ng program and aligned to it (``talk.wav``) when both it and the ``[speech]`` extra are
-    here, else timed from the text alone and silent."""
+    here, else timed from the text alone and silent. With ``audio_only`` and the sound, the same
+    sound lip-synced without its text (recognised: ``talk_audio_only.mp4``)."""
     import shutil
 
     from mimetic.animate.clipfiles import save_clip
@@ -310,6 +315,22 @@ def _talk(rig: Rig, basis, out: Path, renderer: Renderer, say: Progress) -> tupl
             progress=stage(say, "talking head: video"),
         )
     )
+    if audio_only and speech.audio is not None:
+        say("talking head from its sound alone", 0, 1)
+        heard = lip_sync(rig, audio=speech.audio, eyes=True)
+        video = out / "talk_audio_only.mp4"
+        files.append(
+            render_clip(
+                rig,
+                heard.clip,
+                video,
+                basis=basis,
+                size=VIDEO_SIZE,
+                audio=heard.audio,
+                renderer=renderer,
+                progress=stage(say, "talking head from sound: video"),
+            )
+        )
     return files, notes
 
 
