@@ -29,7 +29,7 @@ Three tables, after the load average at the start (the machine is shared; times 
    "phones" timings mapped by ``RHUBARB``, boundaries measured between shape segments against the
    reference's shape segments); and ``naive_timings`` of the transcript. Columns: phones matched,
    median boundary error, share within 50 ms; lip level: share of 10 ms frames whose Rhubarb shape
-   is the reference's, and bilabial closures hit, the reference's P B M whose centre frame has the
+   is the reference's, and bilabial closures hit, the reference's P B M whose mid-closure frame has the
    lips closed (mimetic rows: the coarticulated clip's inner lip gap on ``small_rig`` below 0.5 %
    of the head height, as table 2; Rhubarb-style: shape A held there); time per call.
 
@@ -37,14 +37,16 @@ Three tables, after the load average at the start (the machine is shared; times 
    frame over ≥ 0.5 s) of each LibriVox utterance and bobby with its own transcript, the next
    utterance's text, its words shuffled (seeded) and its second half replaced by the next text's
    start; "no alignment" when pocketsphinx pruned every path (refused anyway). The threshold
-   ``align.MISMATCH_SCORE`` must lie above every wrong one and below every correct one.
+   ``align.MISMATCH_SCORE`` must lie above every wrong one and below every correct one. Scored as
+   ``align_audio`` scores: on the padded audio, the padded ends' pauses passed over.
 
 2. Coarticulation quality on ``mimetic.testing.small_rig()`` with the wire engine, at 60 fps:
    ``coarticulate`` against the linear baseline ``linear_clip`` (the targets at phone centres
    joined by straight lines), on the same timings: "Bob bought a map by the pub.", "My mom made pea
    soup." and "boot beet" (``naive_timings``), and LibriVox utterance 0870 with its reference
    timings (skipped without the shared data). Per sentence and method, on the frame nearest each
-   phone's centre (as ``tests/speech/test_coarticulation.py``): the inner lip gap (distance between
+   phone's centre, a bilabial's at its closure's middle (as ``tests/speech/test_coarticulation.py``):
+   the inner lip gap (distance between
    the rig's ``upper_lip_inner`` and ``lower_lip_inner`` landmarks on the deformed mesh) at the
    bilabials P B M, largest, in % of the head height (``rig.scale``); the closure hit rate, the
    bilabials whose gap is below the tests' closed threshold (0.5 % of the head height); the
@@ -83,9 +85,11 @@ from mimetic.engines import make_engine
 from mimetic.errors import SpeechError
 from mimetic.speech.align import (
     MISMATCH_SCORE,
+    PAD_S,
     _align_words,
     _decoder,
     align_audio,
+    padded,
     pcm16,
     read_wav,
     stretch_scores,
@@ -129,6 +133,13 @@ PARAGRAPH = (
 def n_frames(timings: PhoneTimings, fps: float = FPS) -> int:
     """Frames of a clip of ``timings`` (``coarticulate``'s count)."""
     return int(np.floor(timings.end_s * fps + 1e-9)) + 1
+
+
+def closure_frame(phone: Phone, fps: float = FPS) -> int:
+    """The frame nearest the middle of a bilabial's closure (``PhoneVisemes.closure``: the start of a
+    stop's span, a nasal's whole span), where coarticulation shuts the lips."""
+    share = viseme_map("en").phone(phone.label).closure
+    return round((phone.start_s + share * phone.duration_s / 2) * fps)
 
 
 def centre_frame(phone: Phone, fps: float = FPS) -> int:
@@ -332,7 +343,7 @@ def bench_audio_alone(rig, items: list | None) -> None:
                 total = len(ref.spoken())
                 clip = coarticulate(_with_tail_s(timings), rig, FPS)
                 last = clip.n_frames - 1
-                hits = sum(gap(clip.values[min(centre_frame(p), last)]) < closed for p in bilabials)
+                hits = sum(gap(clip.values[min(closure_frame(p), last)]) < closed for p in bilabials)
             ours = shape_frames(timings, audio_s)
             for d in (acc[method], a):
                 d["errors"].append(errors)
@@ -389,14 +400,15 @@ def _with_tail_s(timings: PhoneTimings) -> PhoneTimings:
 
 def worst_stretch(wav: Path, transcript: str) -> float | None:
     """The lowest ``stretch_scores`` of ``transcript`` aligned to ``wav``; None when it cannot align."""
-    audio = pcm16(*read_wav(wav))
+    samples, rate = read_wav(wav)
+    audio = pcm16(padded(samples, rate), rate)  # as align_audio aligns it
     spoken = [w for w in text_to_phonemes(transcript) if not w.is_pause]
     for wide in (False, True):
         try:
             _, aligned = _align_words(_decoder(wide=wide), audio, spoken, "en")
         except SpeechError:
             continue
-        return min(score for _, _, score in stretch_scores(aligned))
+        return min(score for _, _, score in stretch_scores(aligned, PAD_S))
     return None
 
 
@@ -487,7 +499,7 @@ def bench_coarticulation(rig, shared: Path | None) -> None:
         clips = {"coart": coarticulate(timings, rig, FPS), "linear": linear_clip(timings, rig, FPS)}
         rough = {m: float((np.diff(c.values[:, mouth], n=2, axis=0) ** 2).sum()) for m, c in clips.items()}
         last = len(clips["coart"].values) - 1
-        bilabials = [min(centre_frame(p), last) for p in timings.phones if p.label in BILABIAL]
+        bilabials = [min(closure_frame(p), last) for p in timings.phones if p.label in BILABIAL]
         opens = [min(centre_frame(p), last) for p in timings.phones if p.label in OPEN_VOWELS]
         for method, clip in clips.items():
             gaps = [gap(clip.values[k]) for k in bilabials]
@@ -519,7 +531,8 @@ def bench_coarticulation(rig, shared: Path | None) -> None:
             }
     print(
         "   gaps: inner lip gap (upper_lip_inner to lower_lip_inner) on the frame nearest each phone's\n"
-        f"   centre, % of the head height ({rig.scale:.2f} rig units); closed = below the tests' "
+        f"   centre (a bilabial's: its closure's), % of the head height ({rig.scale:.2f} rig units);\n"
+        "   closed = below the tests' "
         f"{closed:.1f} %;\n"
         "   roughness = summed squared second difference of the lips and jaw channels;\n"
         "   ratio = coarticulate / linear_clip roughness (below 1 is smoother)"

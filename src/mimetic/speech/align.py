@@ -23,11 +23,12 @@ below where it says something else. ``transcript_mismatch`` averages it over str
 ``CHECK_WINDOW_S`` of consecutive aligned words and pauses and refuses the transcript when a stretch
 falls below ``MISMATCH_SCORE``; the pauses at the padded ends (``PAD_S``) are passed over. Measured
 (``benchmarks/bench_speech.py``, table 1c) on the 5 LibriVox utterances and praatIO's "bobby" with
-their own transcripts, and on the LibriVox utterances with wrong ones (the next utterance's text,
-the words shuffled, the second half replaced, seeded): worst stretch of a correct transcript -27.0
-(5 espeak-ng sentences measured once by hand: -44.3); of the 15 wrong ones, 7 do not align at all,
-7 score -79.5 or lower, and one (0920 with its second half replaced) scores -15.9 and passes: a
-wrong transcript that shares much of its words and rhythm with the audio can pass.
+their own transcripts, and with wrong ones (the next utterance's text, the words shuffled, the
+second half replaced, seeded): worst stretch of a correct transcript -27.0 (5 espeak-ng sentences
+measured once by hand: -44.3); of the 18 wrong ones 5 do not align at all and the others score
+-49.2 or lower. The margin is thin on the wrong side, and a wrong transcript that keeps much of
+the audio's words and rhythm can pass (the second half of 0920 replaced by the next text's second
+half scored -15.9).
 espeak-ng's voice is not reliably above it (the demo's sentence, ``tasks.demo.TALK``, has a stretch below), so
 ``lipsync.lip_sync`` does not check the speech it synthesizes. Comparing with a free phone
 decoding of the same stretch (its phones force-aligned, so the scores share units) separated the
