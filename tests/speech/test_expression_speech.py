@@ -56,3 +56,26 @@ def test_speak_takes_expressions_as_name_colon_weight():
     with pytest.raises(ValueError):
         held_expressions(["joy:lots"])
     assert SpeakOptions(text="hi", expressions=(("joy", 0.4),)).expressions == (("joy", 0.4),)
+
+
+def test_speak_command_holds_the_expression_under_the_clip(tmp_path):
+    """``mimetic speak --expr joy:0.4``: the written clip keeps joy's smile on every frame, and the
+    same command without it has none."""
+    from mimetic.animate.clipfiles import load_clip
+    from mimetic.rig.format import save_rig
+    from mimetic.testing import run_cli, small_rig
+
+    rig = small_rig()
+    path = tmp_path / "small.mrig"
+    save_rig(rig, path)
+    smile = blend(rig, [("joy", 0.4)])[rig.channel_index("zygomatic_major_L")]
+    assert smile > 0.1
+    values = {}
+    for name, extra in (("joy", ("--expr", "joy:0.4")), ("plain", ())):
+        out = tmp_path / f"{name}.json"
+        result = run_cli("speak", path, "--text", SENTENCE, *extra, "-o", out, "--no-eyes")
+        assert result.exit_code == 0, result.output
+        clip = load_clip(out).sample(FPS, channels=rig)
+        values[name] = clip.values[:, rig.channel_index("zygomatic_major_L")]
+    assert values["joy"].min() >= smile - 1e-6
+    assert values["plain"].max() < 0.05
