@@ -24,7 +24,7 @@ Meshes: ``load_mesh``, ``save_mesh``, ``Mesh``. The built-in head: ``make_head``
 ``load_library``, ``arkit_pose``, ``facs_pose``, ``Clip``, ``from_expressions``, ``load_clip``,
 ``save_clip``. Delivering: ``export_glb``, ``export_usd``, ``export_obj_sequence``,
 ``morph_targets``, ``arkit_shapes``, ``render_mesh``, ``render_pose``, ``render_clip``, ``save_image``.
-Speech: ``lip_sync``, ``load_timings``. Capture: ``Trajectories``, ``read_trajectories``,
+Speech: ``lip_sync``, ``load_timings``, ``LiveLipSync``. Capture: ``Trajectories``, ``read_trajectories``,
 ``track_video``, ``marker_set``, ``solve_performance``, ``retarget``. Many at once: ``run_batch``,
 ``rig_many``, ``animate_many``, ``render_many``, ``speak_many``, ``capture_many``. Every command as a
 task: ``TASKS`` (``mimetic.tasks``).
@@ -94,6 +94,7 @@ _API = {
     "render_clip": "mimetic.view.video",
     "save_image": "mimetic.view.drawing",
     "lip_sync": "mimetic.speech.lipsync",
+    "LiveLipSync": "mimetic.speech.stream",
     "load_timings": "mimetic.speech.timings",
     "Trajectories": "mimetic.capture.trajectories",
     "read_trajectories": "mimetic.capture.formats",
