@@ -83,6 +83,7 @@ import report
 from bench_basis import print_table, round_robin, table
 from mimetic.engines import make_engine
 from mimetic.errors import SpeechError
+from mimetic.quality import lip_gap
 from mimetic.speech.align import (
     MISMATCH_SCORE,
     PAD_S,
@@ -450,15 +451,10 @@ class LipGap:
 
     def __init__(self, rig) -> None:
         self.rig, self.engine = rig, make_engine(rig, "wire")
-        points = [rig.landmarks[n] for n in ("upper_lip_inner", "lower_lip_inner")]
-        self.bary = np.array([p.bary for p in points])  # (2, 3)
-        self.faces = rig.mesh.faces[[p.face for p in points]]  # (2, 3)
 
     def __call__(self, values: np.ndarray) -> float:
-        """Distance between the inner upper and lower lip midpoints, in % of the head height."""
-        v = self.engine.deform(values)
-        upper, lower = np.einsum("kj,kjd->kd", self.bary, v[self.faces])
-        return float(np.linalg.norm(upper - lower)) / self.rig.scale * 100
+        """``quality.lip_gap`` of the pose, in % of the head height."""
+        return lip_gap(self.rig, self.engine.deform(values)) / self.rig.scale * 100
 
 
 def bench_coarticulation(rig, shared: Path | None) -> None:

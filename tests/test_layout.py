@@ -117,6 +117,8 @@ def test_importing_the_library_and_its_cli_loads_no_test_plumbing():
 
 LONG_LINES = 600
 """A module longer than this says why in its docstring ("Over 600 lines because …")."""
+
+
 def test_a_module_over_600_lines_says_why_in_its_docstring():
     unexplained = sorted(
         f"{_module_name(path)} ({lines} lines)"

@@ -218,6 +218,15 @@ def lip_faces(rig: Rig, faces: np.ndarray) -> np.ndarray:
     return faces[lips[faces].all(axis=1)]
 
 
+def lip_gap(rig: Rig, posed: np.ndarray) -> float:
+    """The distance between the inner lips' midpoints (the landmarks ``upper_lip_inner`` and
+    ``lower_lip_inner`` on the posed vertices (n, 3)), rig units: about 0.4 % of the head height
+    when the lips are pressed shut."""
+    points = [rig.landmarks[n] for n in ("upper_lip_inner", "lower_lip_inner")]
+    upper, lower = (p.position(posed, rig.mesh.faces) for p in points)
+    return float(np.linalg.norm(upper - lower))
+
+
 # --------------------------------------------------------------------------- the jaw
 
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mimetic.errors import SpeechError
+from mimetic.quality import lip_gap
 from mimetic.rig.activations import Clip
 from mimetic.speech.coarticulation import (
     BLINK_S,
@@ -49,13 +50,8 @@ def _closure_frame(phone: Phone, fps: float) -> int:
 
 
 def _lip_gap(rig, engine, values) -> float:
-    """Distance between the inner upper and lower lip midpoints on the deformed mesh (rig units)."""
-    v = engine.deform(values)
-    points = [rig.landmarks[n] for n in ("upper_lip_inner", "lower_lip_inner")]
-    upper, lower = np.einsum(
-        "kj,kjd->kd", np.array([p.bary for p in points]), v[rig.mesh.faces[[p.face for p in points]]]
-    )
-    return float(np.linalg.norm(upper - lower))
+    """The inner lips' gap of a pose on the engine (rig units)."""
+    return lip_gap(rig, engine.deform(values))
 
 
 def _column(rig, name):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mimetic import quality
 from mimetic.animate.expressions import blend
 from mimetic.speech.lipsync import lip_sync, under_expression
 from mimetic.speech.visemes import viseme_map
@@ -18,13 +19,8 @@ CLOSED_REL = 0.005
 
 
 def lip_gap(rig, engine, values) -> float:
-    """Distance between the inner upper and lower lip midpoints on the deformed mesh (rig units)."""
-    v = engine.deform(values)
-    points = [rig.landmarks[n] for n in ("upper_lip_inner", "lower_lip_inner")]
-    upper, lower = np.einsum(
-        "kj,kjd->kd", np.array([p.bary for p in points]), v[rig.mesh.faces[[p.face for p in points]]]
-    )
-    return float(np.linalg.norm(upper - lower))
+    """The inner lips' gap of a pose on the engine (rig units)."""
+    return quality.lip_gap(rig, engine.deform(values))
 
 
 def test_bilabials_close_the_lips_under_joy(rig, engine):
