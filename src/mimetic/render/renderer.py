@@ -197,9 +197,6 @@ class Renderer:
                 prog = ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
                 prog["light_dir"].value = tuple(raster.LIGHT_DIR_VIEW)
                 prog["fill_dir"].value = tuple(raster.FILL_DIR_VIEW)
-                prog["fill"].value = raster.FILL
-                prog["ambient"].value = raster.AMBIENT
-                prog["diffuse"].value = raster.DIFFUSE
                 prog["specular"].value = raster.SPECULAR
                 prog["shininess"].value = raster.SHININESS
                 prog["back_shade"].value = raster.BACK_FACE_SHADE
@@ -274,6 +271,7 @@ class Renderer:
         background: tuple[float, float, float] = raster.BACKGROUND,
         msaa: int = 4,
         look: Surface | None = None,
+        lighting: raster.Lighting = raster.DISPLAY,
     ) -> np.ndarray:
         """Render ``mesh`` seen by ``camera``.
 
@@ -296,6 +294,9 @@ class Renderer:
             gives eyeballs of one flat colour a pupil, iris and sclera, and draws lashes dark and
             thin and teeth ivory. Pass one made at a rest pose to draw a deformed mesh the same way.
 
+        lighting : raster.Lighting
+            The light levels (``raster.DISPLAY`` for pictures, ``raster.DETECTION`` for a face detector).
+
         Returns
         -------
         image : (h, w, 3) uint8, row 0 at the top; pixel centres project as in ``camera.project``.
@@ -312,6 +313,7 @@ class Renderer:
                 albedo=albedo,
                 background=background,
                 look=look,
+                lighting=lighting,
             )
         albedo_rgb = raster._rgb(albedo, "albedo")
         background_rgb = raster._rgb(background, "background")
@@ -341,6 +343,9 @@ class Renderer:
             self._prog["view"].write(view)
             self._prog["proj"].write(proj)
             self._prog["wire_width"].value = raster.WIRE_WIDTH_PX if wireframe else 0.0
+            self._prog["ambient"].value = lighting.ambient
+            self._prog["diffuse"].value = lighting.diffuse
+            self._prog["fill"].value = lighting.fill
             draw.use()
             draw.clear(*(raster.to_uint8(background_rgb) / 255.0), 1.0, depth=1.0)
             if len(corners):
