@@ -403,7 +403,8 @@ def mouth_opening(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) 
     above = np.array([z[r : r + reach, c].max() for c, r in zip(columns, path, strict=True)])
     below = np.array([z[max(r - reach, 0) : r + 1, c].max() for c, r in zip(columns, path, strict=True)])
     floor = z[path, columns]
-    valley = (np.minimum(above, below) - floor > VALLEY_REL * width) | (folds[path, columns] > 0)
+    with np.errstate(invalid="ignore"):  # a column with no skin (inf - inf) is no valley
+        valley = (np.minimum(above, below) - floor > VALLEY_REL * width) | (folds[path, columns] > 0)
     gap = max(int(VALLEY_GAP_REL * width / step), 1)  # short breaks (lips pressed flat) are bridged
     valley = ndimage.binary_closing(valley, np.ones(gap)) | valley
     offset = np.abs(depth.x - corners[:, 0].mean())
