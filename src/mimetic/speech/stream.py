@@ -54,7 +54,8 @@ from mimetic.speech.visemes import VisemeMap, viseme_map
 log = logging.getLogger(__name__)
 
 MAX_LOOKAHEAD_S = 0.1
-"""The default look-ahead, and the issue's bound: no frame depends on audio more than this after it."""
+"""The default look-ahead (seconds): no frame depends on audio more than this after it (up to
+0.5 s may be asked for, at that much more latency)."""
 HISTORY_S = ROUNDING_WINDOW_S + 0.05
 """Phones that ended this long before a frame cannot reach it (the widest dominance window, 0.45 s)."""
 FRAME_S = 0.01
