@@ -13,10 +13,11 @@ Why words: measured (``benchmarks/bench_speech.py``, table 1b) against the refer
 LibriVox utterances and the hand-labelled praatIO "bobby", words then alignment matched 221 of 251
 reference phones, 98 % of their boundaries within 50 ms, the reference's mouth shape (Rhubarb's
 A-H, X) at 94 % of 10 ms frames and 24 of 29 lip closures (text and audio: 26); phone decoding
-115 of 251, 87 %, 74 % and 17 of 29. On bobby (1.2 s) the two are close: 11 vs 10 of 14 phones, 91 vs 85 % within 50 ms,
-73 vs 71 % of frames, 1 vs 2 of 3 closures. The LibriVox references were made by pocketsphinx's own
-aligner, which favours the words route there; bobby is the independent check. The price is time:
-about 0.5-0.8 s of computing per second of audio on the shared 2-core machine, against 0.1 s.
+115 of 251, 87 %, 74 % and 17 of 29. On bobby (1.2 s) the two are close: 11 vs 10 of 14 phones,
+91 vs 85 % within 50 ms, 73 vs 71 % of frames, 1 vs 2 of 3 closures. The LibriVox references were
+made by pocketsphinx's own aligner, which favours the words route there; bobby is the independent
+check. The price is time: about 0.5-0.8 s of computing per second of audio on the shared 2-core
+machine, against 0.1 s.
 
 English only: the models are English. Northern Sotho audio needs its transcript.
 """
