@@ -569,7 +569,8 @@ def run_head(
                 f"{ms(received[0])} (p90 {ms(received[1])})" if received else "",
             )
         )
-    TABLES.append(table(("case", "median", "p90", "÷ floor", "÷ naive"), rows, f"{label}: slider moves"))
+    moves = table(("case", "median", "p90", "÷ floor", "÷ naive"), rows, f"{label}: slider moves")
+    TABLES.append(f"{label[0].upper()}{label[1:]}, slider moves:\n\n{moves}")  # two heads in a full run
     return goals
 
 
