@@ -28,11 +28,15 @@ lint: $(STAMP)
 
 # Each benchmark prints its tables and writes them to benchmarks/out/NAME.md; write_docs.py then copies
 # them between the <!-- bench:NAME --> markers of docs/benchmarks.md (sections not run keep theirs),
-# also after a failure, which still fails the target.
+# also after a failure, which still fails the target. Slow ones on 2 cores (full runs): physics ~3 min
+# (--quick 4 min under load), quality over 10 min with its four engines (--quick alone took 9 min),
+# sweep_motion ~9 min, memory ~23 min, validate_capture 19-25 min (its videos cached or not).
 bench: $(STAMP)
 	rm -f benchmarks/out/*.md
-	status=0; for b in render engines basis rig export speech capture batch view live memory; do \
-		$(BIN)/python benchmarks/bench_$$b.py || { status=1; echo "bench_$$b.py failed"; }; done; \
+	status=0; for b in bench_render bench_engines bench_basis bench_rig bench_export bench_speech \
+		bench_capture bench_batch bench_view bench_live bench_memory bench_physics bench_quality \
+		sweep_motion validate_capture; do \
+		$(BIN)/python benchmarks/$$b.py || { status=1; echo "$$b.py failed"; }; done; \
 	$(BIN)/python benchmarks/write_docs.py && exit $$status
 
 clean:

@@ -232,14 +232,14 @@ def round_robin(cases: dict[str, tuple[Callable[[], object], int]], rounds: int)
     return {name: statistics.median(s) for name, s in samples.items()}
 
 
-def table(header: tuple[str, ...], rows: list[tuple[str, ...]], title: str = "") -> str:
+def table(header: tuple[str, ...], rows: list[tuple[str, ...]], title: str = "", caption: str = "") -> str:
     """A table of formatted cells printed with rich; returned as Markdown (``report.show``)."""
-    return report.show(title, header, rows)
+    return report.show(title, header, rows, caption)
 
 
-def print_table(rows: list[tuple[str, float, str, float | None]], title: str = "") -> str:
+def print_table(rows: list[tuple[str, float, str, float | None]], title: str = "", caption: str = "") -> str:
     """Rows (case, s per frame, baseline label, baseline s per frame or None) as one table,
-    printed with rich; returned as Markdown."""
+    printed with rich (``caption`` under it); returned as Markdown."""
     header = ("case", "median time", "throughput", "baseline", "ratio")
     body = [
         (
@@ -251,7 +251,7 @@ def print_table(rows: list[tuple[str, float, str, float | None]], title: str = "
         )
         for case, t, label, base in rows
     ]
-    return table(header, body, title)
+    return table(header, body, title, caption)
 
 
 # --------------------------------------------------------------------------- main
@@ -368,16 +368,21 @@ def main() -> None:
     )
     for note in notes:
         print(note)
-    print("times are per frame; ratio = median / baseline (below 1 is faster)")
-    print_table(rows)
+    goal_lines = []
     for label, g in goals.items():
         single, batch = g["single"] >= GOAL_SINGLE_FPS, g["batch"] >= GOAL_BATCH_FPS
-        print(
+        goal_lines.append(
             f"{label}: one frame >= {GOAL_SINGLE_FPS:,} frames/s: {g['single']:,.0f} float32 "
             f"({g['single64']:,.0f} float64) — {'met' if single else 'NOT met'}; batches of "
             f"{GOAL_BATCH_FRAMES} >= {GOAL_BATCH_FPS:,} frames/s: {g['batch']:,.0f} float32 "
             f"({g['batch64']:,.0f} float64) — {'met' if batch else 'NOT met'}"
         )
+    caption = (
+        "; ".join(notes)
+        + ". Times are per frame; ratio = median / baseline (below 1 is faster). Goals: "
+        + "; ".join(goal_lines)
+    )
+    report.save("basis", [print_table(rows, "evaluate_basis against dense products", caption)])
 
 
 if __name__ == "__main__":

@@ -71,6 +71,7 @@ from threadpoolctl import threadpool_limits
 
 import mimetic.capture.performance as performance
 import mimetic.capture.smooth as smoothing
+import report
 from bench_basis import print_table, round_robin, table
 from mimetic.capture.expression import MIN_MOVE_REL, MarkerSolver, prepare_marker_solver
 from mimetic.capture.markers import MarkerSet, marker_set
@@ -86,6 +87,8 @@ from mimetic.rig.activations import Clip
 from mimetic.rig.model import Rig
 from mimetic.testing import small_rig
 
+TABLES: list[str] = []
+"""The tables written to ``out/capture.md`` (``report.save``), in order."""
 FPS = 60.0
 FRAMES, QUICK_FRAMES = 10_000, 2_000
 BASELINE_FRAMES, QUICK_BASELINE_FRAMES = 300, 100
@@ -479,7 +482,7 @@ def bench_per_frame(problem: Problem, capture: Capture, n_baseline: int, rounds:
         f"   the baseline's {n_baseline} frames are spread over the clip ({f // n_baseline} apart), so the "
         f"third row warm-starts each from one {f // n_baseline} frames before (little use)"
     )
-    print_table(rows)
+    TABLES.append(print_table(rows, "1. Per-frame solve"))
     print(
         f"   max |difference| from lsq_linear bvls over its {n_baseline} frames: {difference:.1e} "
         f"(solve of the whole clip), {difference_sample:.1e} (box_qp_frames on those frames alone)"
@@ -555,7 +558,7 @@ def bench_temporal(problem: Problem, capture: Capture, rounds: int) -> dict[str,
         "   times per frame, so throughput is frames/s; ratio = time / baseline (what the smoothing adds "
         "to a per-frame solve)"
     )
-    print_table(rows)
+    TABLES.append(print_table(rows, "2a. Whole-clip temporal solve"))
     print(
         f"   whole clip: noisy {seconds['noisy']:.2f} s, damaged {seconds['damaged']:.2f} s for {f:,} frames"
         + (
@@ -647,18 +650,18 @@ def bench_chain(problem: Problem, capture: Capture, rounds: int) -> None:
         rows.append((STAGES.get((a, b), f"{a} → {b}"), f"{tb - ta:.3f}", f"{(tb - ta) / total:.0%}"))
     for name, times in spent.items():
         rows.append((f"   inside: {name} × {len(times)}", f"{sum(times):.3f}", f"{sum(times) / total:.0%}"))
-    table(("stage", "s", "share"), rows)
+    TABLES.append(table(("stage", "s", "share"), rows, "2b. The solve_performance chain, by stage"))
     solved = result.clip.select(names).values
     head = result.clip.select(performance.HEAD_CHANNELS).values
-    report = result.report(rig)
+    fit = result.report(rig)
     caught = result.outliers[capture.spikes].mean()
     false = (result.outliers & ~capture.spikes & ~capture.missing).sum()
     print(
         f"   errors against the truth: activations RMS {rms(solved - capture.activations):.3f}; head angles "
         f"RMS {np.degrees(rms(head - angles)):.2f}°; marker fit median "
-        f"{report['marker_rms_median'] / problem.metre * 1e3:.2f} mm;\n   spikes marked as outliers "
+        f"{fit['marker_rms_median'] / problem.metre * 1e3:.2f} mm;\n   spikes marked as outliers "
         f"{caught:.1%}, other samples marked {false} ({false / capture.missing.size:.2%}); flagged frames "
-        f"{report['flagged_frames']}"
+        f"{fit['flagged_frames']}"
     )
 
 
@@ -738,7 +741,7 @@ def bench_video(rig: Rig, frames: int, sizes: tuple[int, ...], rounds: int) -> N
                 f"{seconds['track']:.2f} s"
             )
     print(f"   median of {rounds} round(s), one untimed call first; times per video frame")
-    print_table(rows)
+    TABLES.append(print_table(rows, "3. Video tracking"))
     print("\n".join(notes))
 
 
@@ -805,12 +808,13 @@ def main() -> None:
         )
     if args.quick:
         rows.append((f"--quick runs in < {GOAL_QUICK_S:g} s", f"{wall:.0f} s", verdict(wall < GOAL_QUICK_S)))
-    table(("goal", "measured", "met"), rows)
+    TABLES.append(table(("goal", "measured", "met"), rows, "Summary"))
     note = busy.note()
     print(
         f"\nload average at the end {os.getloadavg()[0]:.2f}; benchmark wall time {wall:.0f} s"
         + (f"; over the run {note} (times are inflated when this is large)" if note else "")
     )
+    report.save("capture", TABLES)
 
 
 if __name__ == "__main__":

@@ -56,6 +56,7 @@ from pathlib import Path
 
 import numpy as np
 
+import report
 from bench_basis import table
 from bench_capture import Contention
 from mimetic.capture.stream import CALIBRATION_S, LiveCapture
@@ -70,6 +71,8 @@ from mimetic.view.look import rig_look
 from mimetic.view.sheets import face_camera
 from mimetic.view.video import write_mp4
 
+TABLES: list[str] = []
+"""The tables written to ``out/live.md`` (``report.save``), in order."""
 SIZE = (1280, 720)
 """The video's width and height, pixels (720p)."""
 FPS = 30.0
@@ -293,11 +296,18 @@ def speech_main(quick: bool) -> None:
     print(f"live lip sync on the default head ({len(rig.channels)} channels) at {SPEECH_FPS:g} fps, "
           f"{len(said)} utterances; {others or 'load unknown'}")  # fmt: skip
     print("latency = sound in → its frame out on a real-time virtual clock; ratio = time / baseline")
-    table(("case", "median time", "throughput", "baseline", "ratio"), latency_rows)
+    TABLES.append(
+        table(
+            ("case", "median time", "throughput", "baseline", "ratio"), latency_rows, "Live lip sync: latency"
+        )
+    )
     print("agreement with the offline lip_sync (forced alignment to the transcript), chunks of 20 ms")
-    table(
-        ("utterance", "look-ahead", "jaw_open r", "mouth |diff|", "bilabials hit"),
-        [(n, f"{la * 1e3:g} ms", f"{r:.3f}", f"{d:.3f}", f"{h:.0%}") for n, la, r, d, h in agree_rows],
+    TABLES.append(
+        table(
+            ("utterance", "look-ahead", "jaw_open r", "mouth |diff|", "bilabials hit"),
+            [(n, f"{la * 1e3:g} ms", f"{r:.3f}", f"{d:.3f}", f"{h:.0%}") for n, la, r, d, h in agree_rows],
+            "Live lip sync: agreement with the offline lip_sync",
+        )
     )
     for (chunk_s, lookahead_s), (med, p95, comp, mean) in summary.items():
         if lookahead_s == 0.1:
@@ -321,6 +331,7 @@ def main() -> None:
         speech_main(quick=args.quick)
     if not args.speech_only:
         capture_main(args.quick)
+    report.save("live", TABLES)
 
 
 def capture_main(quick: bool) -> None:
@@ -368,7 +379,9 @@ def capture_main(quick: bool) -> None:
     if "calibration" in median:
         rows.append(row("the calibrating frame, once", median["calibration"], budget, BUDGET_S))
     print("times are per frame; ratio = time / baseline (below 1 is faster)")
-    table(("case", "median time", "throughput", "baseline", "ratio"), rows)
+    TABLES.append(
+        table(("case", "median time", "throughput", "baseline", "ratio"), rows, "Live capture at 720p")
+    )
     met = median["total"] <= BUDGET_S
     print(
         f"goal: <= {BUDGET_S * 1e3:.0f} ms per frame at 720p including tracking: median "

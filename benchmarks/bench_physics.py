@@ -28,6 +28,7 @@ import warnings
 import numpy as np
 from scipy.sparse.linalg import splu
 
+import report
 from bench_basis import print_table, round_robin
 from bench_rig import print_table as print_titled
 from mimetic.engines import make_engine
@@ -41,6 +42,8 @@ from mimetic.rig.activations import pose
 from mimetic.rig.recipe import build_rig
 from mimetic.testing import ict_folder, ict_landmarks, load_ict
 
+TABLES: list[str] = []
+"""The tables written to ``out/physics.md`` (``report.save``), in order."""
 REALTIME_S = 1 / 30
 CLIP_FRAMES = 30
 """The dynamic case: a smile that comes and goes in one second at 30 fps."""
@@ -130,7 +133,7 @@ def solver_choice(system, label: str, used: str, columns: int, block: int) -> No
     solvers = {"cholespy": chol, "nested_lu": nested, "splu": lu}
     seconds = round_robin({name: (lambda f=f: f.solve(rhs), 3) for name, f in solvers.items()}, 3)
     factor_s = {"cholespy": chol_factor_s, "nested_lu": nested_factor_s, "splu": splu_factor_s}
-    print(f"solver ({label}, {system.shape[0]:,} unknowns, {columns} right-hand sides):")
+    what = f"solver ({label}, {system.shape[0]:,} unknowns, {columns} right-hand sides)"
     rows = []
     for name in ("nested_lu", "cholespy"):
         tag = " (used)" if name == used else ""
@@ -140,7 +143,7 @@ def solver_choice(system, label: str, used: str, columns: int, block: int) -> No
         ("baseline: splu factorisation", splu_factor_s, "", None),
         ("baseline: splu solve", seconds["splu"], "", None),
     ]
-    print_table(rows)
+    TABLES.append(f"{what[0].upper()}{what[1:]}, times per call:\n\n{print_table(rows, what)}")
 
 
 def bench_head(label: str, rig, rounds: int) -> None:
@@ -181,16 +184,14 @@ def bench_head(label: str, rig, rounds: int) -> None:
     for case in ("tissue engine, quasi-static frame", "tissue engine, dynamic frame (1 s clip)"):
         rows.append((case, per_frame[case], "vector engine", vector_s))
         rows.append((f"{case} vs 30 fps", per_frame[case], "real time (33.3 ms)", REALTIME_S))
-    print(
-        f"\n{label}: {rig.n_vertices:,} vertices; tissue volume {volume.n_nodes:,} nodes, "
+    intro = (
+        f"**{label}**: {rig.n_vertices:,} vertices; tissue volume {volume.n_nodes:,} nodes, "
         f"{len(volume.tets):,} tetrahedra ({2 * len(volume.triangles):,} prisms); "
-        f"load average {os.getloadavg()[0]:.2f}"
+        f"load average {os.getloadavg()[0]:.2f}. Setup: volume {volume_s:.2f} s; fem assembly + "
+        f"factorisation {prepare_s:.2f} s; one solve per muscle ({len(active)}) + calibration "
+        f"{basis_s:.2f} s; whole fem engine {fem_s:.2f} s{tissue_setup}."
     )
-    print(
-        f"setup: volume {volume_s:.2f} s; fem assembly + factorisation {prepare_s:.2f} s; one solve per "
-        f"muscle ({len(active)}) + calibration {basis_s:.2f} s; whole fem engine {fem_s:.2f} s{tissue_setup}"
-    )
-    print_table(rows)
+    print(f"\n{intro}")
     dynamic = per_frame["tissue engine, dynamic frame (1 s clip)"]
     fps = 1 / dynamic
     verdict = (
@@ -202,10 +203,12 @@ def bench_head(label: str, rig, rounds: int) -> None:
         if fem_goal is None
         else (f"; fem setup goal ≤ {fem_goal:.0f} s: {'met' if fem_s <= fem_goal else 'NOT met'}")
     )
-    print(
-        f"tissue at 30 fps, {volume.n_nodes:,} nodes: {steps} step(s) per frame, {steps / dynamic:,.0f} "
-        f"steps/s, {fps:,.1f} output frames/s ({verdict}){fem_verdict}"
+    tissue_line = (
+        f"Tissue at 30 fps, {volume.n_nodes:,} nodes: {steps} step(s) per frame, {steps / dynamic:,.0f} "
+        f"steps/s, {fps:,.1f} output frames/s ({verdict}){fem_verdict}."
     )
+    TABLES.append(intro)
+    TABLES.append(print_table(rows, f"{label}: one frame", tissue_line))
     engines = {"wire": make_engine(rig, "wire"), "vector": vector, "fem": fem, "tissue": tissue}
     poses = {name: engine.deform(values) for name, engine in engines.items()}
     rest = rig.mesh.vertices
@@ -219,12 +222,12 @@ def bench_head(label: str, rig, rounds: int) -> None:
             f"max {diffs[0].max():.2f}; from vector by rms {np.sqrt(np.mean(diffs[1] ** 2)):.3f}, "
             f"max {diffs[1].max():.2f}"
         )
-    print_titled(
-        f"what the physics adds: outward bulge along the rest normal, {rig.units}, of the smile over the "
-        "cheeks and of a pucker (orbicularis_oris 1) over the lips",
-        ("pose", "engine", "mean", "p95", "max"),
-        bulges(rig, engines),
+    bulge_title = (
+        f"{label}: what the physics adds: outward bulge along the rest normal, {rig.units}, of the "
+        "smile over the cheeks and of a pucker (orbicularis_oris 1) over the lips"
     )
+    bulge_table = print_titled(bulge_title, ("pose", "engine", "mean", "p95", "max"), bulges(rig, engines))
+    TABLES.append(f"{bulge_title[0].upper()}{bulge_title[1:]}.\n\n{bulge_table}")
     solver_choice(solver.K[solver.free][:, solver.free], f"{label}, fem", "nested_lu", len(active), 3)
     solver_choice(tissue.model.global_matrix(), f"{label}, tissue", "cholespy", 3, 1)
 
@@ -238,6 +241,7 @@ def main() -> None:
     for label, rig in heads(args.quick):
         bench_head(label, rig, rounds)
     print(f"\nbenchmark wall time {time.perf_counter() - begin:.0f} s")
+    report.save("physics", TABLES)
 
 
 if __name__ == "__main__":

@@ -60,6 +60,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import report
 from bench_rig import print_table, verdict  # the same tables as the fit benchmark
 from mimetic.animate.expressions import expression_pose, load_library
 from mimetic.engines import ENGINES as ALL_ENGINES
@@ -101,6 +102,18 @@ from mimetic.testing import (
     mediapipe_landmarks,
     shared_data_dir,
 )
+
+TABLES: list[str] = []
+"""The tables written to ``out/quality.md`` (``report.save``), in order."""
+
+
+def titled(title: str, header: tuple[str, ...], rows: list[tuple[str, ...]], into: list[str] = TABLES) -> str:
+    """``print_table``, its Markdown with the title as a paragraph above it (the titles define the
+    columns and the targets) appended to ``into`` (``sweep_motion`` passes its own list) and returned."""
+    table = f"{title}\n\n{print_table(title, header, rows)}"
+    into.append(table)
+    return table
+
 
 ENGINES = tuple(ALL_ENGINES)
 """The engines measured (``--engines``); default: every engine."""
@@ -412,7 +425,7 @@ def tables_abc(cases: list[Case], reference: Reference) -> None:
             measure(case, engine_name, reference, rows)
     t = time.perf_counter() - begin
     ref = reference
-    print_table(
+    titled(
         f"a. jaw_open alone at the ICT-matched chin drop (ICT's jawOpen: {ref.drop:.2f} cm on ICT, "
         f"{100 * ref.drop_rel:.1f} % of the head height elsewhere); face-edge stretch p99 and widest "
         f"single-edge opening (cm); baseline = ICT's jawOpen on the same head ('ICT': on the neutral, "
@@ -432,7 +445,7 @@ def tables_abc(cases: list[Case], reference: Reference) -> None:
         ),
         rows.jaw,
     )
-    print_table(
+    titled(
         f"b. lips: flipped lip triangles (normal turned > 90°) summed over the {len(load_library())} "
         "library expressions and the largest flipped share of the lip area in one expression (baseline: "
         "ICT's own 53 shapes on the same head), the worst face-edge "
@@ -455,7 +468,7 @@ def tables_abc(cases: list[Case], reference: Reference) -> None:
         ),
         rows.lips,
     )
-    print_table(
+    titled(
         "c. lids: gap per margin column, v(upper) − v(lower) along the eye's up axis (cm, negative = "
         "crossed), both eyes; closed = both upper lids at their maximum; wink = the library's 'wink' "
         "(left eye); roughness = RMS deviation of the left upper margin from a smooth curve, % of the "
@@ -527,7 +540,7 @@ def tables_de(heads: Heads, quick: bool) -> None:
                 "" if ok is None else verdict(ok),
             )
         )
-    print_table(
+    titled(
         f"d. expression fidelity: ICT's {len(heads.names)} shapes fitted on each baked rig over ICT's face "
         "(vertices 0..9408), residual = ‖fit − target‖ / ‖target‖ in %; targets: ICT auto median ≤ "
         f"{pct(GOAL_FIDELITY_MEDIAN)} % and every shape ≤ {pct(GOAL_FIDELITY_WORST)} %; identity heads "
@@ -556,7 +569,7 @@ def tables_de(heads: Heads, quick: bool) -> None:
     shape_rows = []
     for k, shape in enumerate(heads.names):
         shape_rows.append((shape, *(pct(results[c][0].residual[k]) for c in columns)))
-    print_table(
+    titled(
         "e. fidelity per shape, residual %",
         ("shape", *(f"{n} {e}" for n, e in columns)),
         shape_rows,
@@ -603,8 +616,8 @@ def main() -> None:
     if mediapipe is not None:
         cases.append(mediapipe)
     cases += [heads.generated(seed) for seed in (QUICK_GENERATED_SEEDS if args.quick else GENERATED_SEEDS)]
-    print_table(
-        "heads",
+    titled(
+        "Heads",
         ("head", "landmarks", "vertices", "face-set faces", "head height cm", "rig time"),
         [
             (
@@ -623,6 +636,7 @@ def main() -> None:
     if heads.has_ict and set("de") & set(args.tables):
         tables_de(heads, args.quick)
     print(f"\nbenchmark wall time {time.perf_counter() - begin:.0f} s")
+    report.save("quality", TABLES)
 
 
 if __name__ == "__main__":

@@ -68,6 +68,7 @@ from pathlib import Path
 import numpy as np
 import websockets.asyncio.connection
 
+import report
 from bench_basis import table
 from bench_capture import Contention
 from mimetic.engines import ENGINES
@@ -78,6 +79,8 @@ from mimetic.testing import CHROMIUM, CHROMIUM_ARGS, ict_folder, ict_landmarks, 
 from mimetic.view.session import BAKED_ENGINES, Deformers
 from mimetic.view.web import Viewer, start
 
+TABLES: list[str] = []
+"""The per-head tables written to ``out/view.md`` (``report.save``, after the goals), in order."""
 DEFAULT = "default head"
 ICT = "ICT-FaceKit"
 GOAL_MS = {DEFAULT: 50.0, ICT: 100.0}
@@ -566,7 +569,8 @@ def run_head(
                 f"{ms(received[0])} (p90 {ms(received[1])})" if received else "",
             )
         )
-    table(("case", "median", "p90", "÷ floor", "÷ naive"), rows)
+    moves = table(("case", "median", "p90", "÷ floor", "÷ naive"), rows, f"{label}: slider moves")
+    TABLES.append(f"{label[0].upper()}{label[1:]}, slider moves:\n\n{moves}")  # two heads in a full run
     return goals
 
 
@@ -626,7 +630,7 @@ def main() -> None:
         "\ngoals: slider move → updated mesh, server side (median; p90 beside it; the browser's time for "
         "reference)"
     )
-    table(
+    goals_table = table(
         (
             "head",
             "engine",
@@ -638,8 +642,10 @@ def main() -> None:
             "in the browser",
         ),
         goals,
+        "Goals",
     )
     print(f"\nbenchmark wall time {time.perf_counter() - begin:.0f} s")
+    report.save("view", [goals_table, *TABLES])  # the goals first, as the document shows them
 
 
 if __name__ == "__main__":

@@ -34,8 +34,8 @@ from functools import partial
 
 import numpy as np
 
-from bench_quality import CROSSING_TOL_CM, Case, Heads, Reference
-from bench_rig import print_table
+import report
+from bench_quality import CROSSING_TOL_CM, Case, Heads, Reference, titled
 from mimetic.animate.expressions import expression_pose, load_library
 from mimetic.engines import ENGINES as ALL_ENGINES
 from mimetic.engines import make_engine
@@ -55,6 +55,8 @@ from mimetic.quality import (
 )
 from mimetic.testing import triangle_soup
 
+TABLES: list[str] = []
+"""The tables written to ``out/sweep-motion.md`` (``report.save``), in order."""
 GOAL_LID_GAP_CM = 0.1
 GOAL_WIDEST_CM = 0.4
 GOAL_FLIPS = {"tissue": 20}
@@ -193,7 +195,7 @@ def main() -> None:
             )
         heads.cache.clear()
         del case
-    print_table(
+    titled(
         "motion on every head (cm; goals: lids ≤ 0.1 no crossing, widest ≤ 0.4, flips 0 (tissue ≤ 20))",
         ("head", "group", "engine", "lids at max", "crossing", "widest", "ICT jawOpen", "flips", "verdict"),
         [
@@ -210,6 +212,7 @@ def main() -> None:
             )
             for r in rows
         ],
+        TABLES,
     )
     summary = []
     for group in ("calibration", "check"):
@@ -230,12 +233,14 @@ def main() -> None:
                     f"{sum(r.verdict() == 'met' for r in sel)} of {len(sel)}",
                 )
             )
-    print_table(
+    titled(
         "summary: heads meeting each goal",
         ("group", "engine", "heads", "lids", "widest", "flips", "widest median / max", "all goals"),
         summary,
+        TABLES,
     )
     print(f"\nsweep wall time {time.perf_counter() - begin:.0f} s")
+    report.save("sweep-motion", TABLES)
 
 
 if __name__ == "__main__":

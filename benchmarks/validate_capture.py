@@ -36,7 +36,9 @@ sweep) and are reported separately on the check heads (identities 10 σ1 and 11 
 
 Outputs (never committed) go to ``benchmarks/out/capture/``: ``validation.json``, the videos (cached
 between runs: delete them after changing ``mimetic.testing.takes``), and ``NAME_ROUTE.png``: the truth
-(top) beside the solved face (bottom) at the peak of each act, front view, head motion removed.
+(top) beside the solved face (bottom) at the peak of each act, front view, head motion removed. The
+tables go to ``benchmarks/out/capture-validation.md`` (``report.save``), which ``make bench`` copies
+into ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
@@ -50,10 +52,10 @@ from pathlib import Path
 
 import numpy as np
 from rich.console import Console
-from rich.table import Table
 
 import mimetic.capture.head as head_module
 import mimetic.capture.performance as performance_module
+import report
 from mimetic.capture import Trajectories, marker_set, prepare_solver, solve_performance
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
@@ -90,6 +92,8 @@ FOV_DEG = 40.0
 DISTANCE_CM = 60.0
 
 console = Console(width=220, highlight=False)
+TABLES: list[str] = []
+"""The sweep's table (``--sweep``), written with the validation's to ``out/capture-validation.md``."""
 
 
 @dataclass
@@ -251,18 +255,6 @@ def row(name: str, route: str, s: dict, ceil: dict) -> tuple:
     )
 
 
-def show(title: str, columns: tuple, rows: list, caption: str = "") -> str:
-    """Print a rich table; return it as Markdown."""
-    t = Table(title=title, title_justify="left", caption=caption or None, caption_justify="left")
-    for name in columns:
-        t.add_column(name)
-    for r in rows:
-        t.add_row(*r)
-    console.print(t)
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows])
-
-
 def sweep(cases: list[Case]) -> None:
     """κ and τ on the calibration heads' marker route (the check heads are not looked at)."""
     rows = []
@@ -278,11 +270,12 @@ def sweep(cases: list[Case]) -> None:
             prior = "no prior" if tau is None else f"{tau:g}"
             rows.append((f"{kappa:g}", prior, fmt(np.mean(gaps), 2), fmt(head, 2), fmt(worse, 2)))
     head_module.MODEL_ERROR, performance_module.SHAPE_MOTION_REL = DEFAULTS
-    show(
+    sweep_table = report.show(
         "sweep on the calibration heads (markers route), means over the heads",
         ("κ MODEL_ERROR", "τ SHAPE_MOTION_REL", "gap to ceiling", "head °", "worse than rest %"),
         rows,
     )
+    TABLES.append(sweep_table)
 
 
 DEFAULTS = (head_module.MODEL_ERROR, performance_module.SHAPE_MOTION_REL)
@@ -353,12 +346,16 @@ def main() -> None:
             rows.append(row("", "flat (perfect tracker)", s, ceil))
         results["heads"][case.name] = record
         console.print(f"   {case.name}: done ({time.perf_counter() - begin:.0f} s)")
-    markdown = show(
-        "Capture of ICT-FaceKit's captured shapes with head motion: face residual, median over moving frames",
-        COLUMNS,
-        rows,
-        "gap: points above the ceiling (goals: markers ≤ 5, video ≤ 12; head ≤ 1°). The calibration heads "
-        "chose κ and τ; the check heads were not looked at while choosing.",
+    tables = [*TABLES]  # the sweep's, when asked for
+    tables.append(
+        report.show(
+            "Capture of ICT-FaceKit's captured shapes with head motion: face residual, median over "
+            "moving frames",
+            COLUMNS,
+            rows,
+            "gap: points above the ceiling (goals: markers ≤ 5, video ≤ 12; head ≤ 1°). The calibration "
+            "heads chose κ and τ; the check heads were not looked at while choosing.",
+        )
     )
     summary = []
     for group in ("calibration", "check"):
@@ -371,17 +368,17 @@ def main() -> None:
                     fmt(np.mean([r[route]["head_deg"] for r in done]), 2),
                     fmt(np.mean([r[route]["worse_than_rest"] for r in done])),
                 ))  # fmt: skip
-    markdown += "\n\n" + show(
-        "mean over each head group",
-        ("heads", "route", "gap to ceiling (points)", "head °", "worse than rest %"),
-        summary,
+    tables.append(
+        report.show(
+            "mean over each head group",
+            ("heads", "route", "gap to ceiling (points)", "head °", "worse than rest %"),
+            summary,
+        )
     )
-    (OUT / "validation.md").write_text(markdown + "\n")
+    report.save("capture-validation", tables)
     results["wall_s"] = time.perf_counter() - begin
     write_json(results, OUT / "validation.json")
-    console.print(
-        f"wrote {OUT / 'validation.json'}, validation.md and the sheets; wall time {results['wall_s']:.0f} s"
-    )
+    console.print(f"wrote {OUT / 'validation.json'} and the sheets; wall time {results['wall_s']:.0f} s")
 
 
 if __name__ == "__main__":
