@@ -32,7 +32,7 @@ Live lip sync (``--speech-only`` runs only this part): WAV files pushed through
 ``LiveLipSync(rig, fps=30)`` in chunks as a microphone delivers them (``SPEECH_CHUNKS_S``) with
 look-aheads ``LOOKAHEADS_S`` (0.1 s is the default and the bound; the others show the trade-off).
 The utterances: ``ESPEAK`` sentences synthesized by espeak-ng and the five LibriVox readings in
-``/work/shared/data/speech/librivox`` (``--quick``: one of each). Per push, ``time.perf_counter``
+``../shared/data/speech/librivox`` (``--quick``: one of each). Per push, ``time.perf_counter``
 gives its compute; a real-time source is simulated on a virtual clock: chunk j (ending at audio
 time e_j) arrives at e_j, is processed once the previous push is done, and its frames come out when
 it is; a frame's latency is that moment less its own time in the audio (sound in → frame out: the
@@ -184,7 +184,6 @@ SPEECH_CHUNKS_S = (0.01, 0.02, 0.05)
 """Chunk lengths of the simulated microphone, seconds."""
 LOOKAHEADS_S = (0.05, 0.1, 0.2)
 ESPEAK = ("the quick brown fox jumps over the lazy dog", "my mother paints maps by the bay")
-LIBRIVOX = Path("/work/shared/data/speech/librivox")
 CLOSURE_NEAR_S = 0.05
 CLOSURE_TOL = 0.05
 
@@ -196,7 +195,11 @@ def utterances(folder: Path, quick: bool) -> list[tuple[str, Path, str]]:
     out = []
     for k, text in enumerate(ESPEAK[:1] if quick else ESPEAK):
         out.append((f"espeak-ng {k + 1}", synthesize(text, folder / f"espeak{k}.wav"), text))
-    for wav in sorted(LIBRIVOX.glob("*.wav"))[: 1 if quick else None]:
+    from mimetic.testing import shared_data_dir
+
+    shared = shared_data_dir()
+    librivox = sorted((shared / "speech" / "librivox").glob("*.wav")) if shared else []
+    for wav in librivox[: 1 if quick else None]:
         out.append((f"librivox {wav.stem[-4:]}", wav, wav.with_suffix(".txt").read_text().strip()))
     return out
 
