@@ -14,14 +14,12 @@ from mimetic.capture import (
     Performance,
     Trajectories,
     keep_edits,
-    marker_set,
     retarget,
     solve_performance,
 )
 from mimetic.capture.expression import determined_channels
 from mimetic.capture.smooth import smooth_points, smoothed_noise, smoothing_weight
 from mimetic.engines import make_engine
-from mimetic.engines.bake import bake
 from mimetic.engines.basis import evaluate_basis
 from mimetic.engines.skinning import rotation_x, rotation_y, rotation_z
 from mimetic.errors import MimeticWarning
@@ -30,16 +28,6 @@ from mimetic.rig.activations import Clip
 FPS = 60.0
 NOISE_MM = 1.0
 NOISE = smoothed_noise(0.1 / np.sqrt(3), FPS, 8.0)  # 1 mm (3D RMS) in cm per coordinate, after smoothing
-
-
-@pytest.fixture(scope="module")
-def baked(rig):
-    return bake(make_engine(rig, "wire"), correctives=0, samples=2).basis
-
-
-@pytest.fixture(scope="module")
-def ibug(rig):
-    return marker_set(rig, "ibug68")
 
 
 def smooth_clip(rig, names, frames: int, rng) -> np.ndarray:

@@ -21,7 +21,6 @@ from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.errors import MimeticError, MissingExtraError
 from mimetic.rig.activations import Clip
-from mimetic.rig.format import save_rig
 from mimetic.testing import require_extra, run_cli
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
@@ -50,11 +49,6 @@ def web():
 @pytest.fixture(scope="module")
 def basis(rig):
     return bake(make_engine(rig, "wire")).basis
-
-
-@pytest.fixture(scope="module")
-def rig_file(rig, tmp_path_factory):
-    return save_rig(rig, tmp_path_factory.mktemp("rig") / "small.mrig")
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from mimetic.errors import MimeticError
-from mimetic.rig.format import save_rig
 from mimetic.speech.align import read_wav
 from mimetic.testing import require_extra, run_cli
 
@@ -24,11 +23,6 @@ def web():
     from mimetic.view import web
 
     return web
-
-
-@pytest.fixture(scope="module")
-def rig_file(rig, tmp_path_factory):
-    return save_rig(rig, tmp_path_factory.mktemp("rig") / "small.mrig")
 
 
 @pytest.fixture(scope="module")

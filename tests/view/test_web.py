@@ -26,7 +26,6 @@ from mimetic.engines import make_engine
 from mimetic.fit.landmarks import MIN_LANDMARKS, read_landmarks
 from mimetic.mesh.io import save_mesh
 from mimetic.mesh.model import Mesh
-from mimetic.rig.format import save_rig
 from mimetic.testing import require_extra, run_cli
 from mimetic.view.session import PICK_LANDMARKS
 
@@ -39,11 +38,6 @@ def web():
     from mimetic.view import web
 
     return web
-
-
-@pytest.fixture(scope="module")
-def rig_file(rig, tmp_path_factory):
-    return save_rig(rig, tmp_path_factory.mktemp("rig") / "small.mrig")
 
 
 @pytest.fixture
