@@ -81,3 +81,22 @@ def test_the_scan_in_millimetres_moves_as_the_scan_in_centimetres(ict):
     ours, theirs = rig.skin_weights.toarray(), mm.rig.skin_weights.toarray()
     np.testing.assert_allclose(theirs[FACE], ours[FACE], atol=0.02)
     assert np.abs(theirs - ours).mean() < 1e-3  # the mouth socket's fit differs by a hair
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_tall_eyes_close_at_the_lids_maximum():
+    """An ICT identity at σ 2 whose openings are ~1.5 cm tall (ICT's: 1 cm): turning about the eye's
+    centre, the lid channel's maximum left the upper lids 0.4 cm short; the pivot is set back
+    (``lids.closing_pivot``) until they meet."""
+    from mimetic.fit.autolandmarks import auto_landmarks
+    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
+    from mimetic.testing import ict_identity
+
+    require_shared_data("ict-facekit")
+    head = ict_identity(102, 2.0)
+    rig = rig_head(head, auto_landmarks(head)).rig
+    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
+    for side in "LR":
+        assert lid_gap(find_lid_margins(rig, side), closed).largest < 0.1  # cm
+        eye, lid = rig.bone(f"eye_{side}"), rig.bone(f"eyelid_upper_{side}")
+        assert (lid.head - eye.head)[2] < -0.1  # set back behind the eye's centre (cm)

@@ -114,3 +114,28 @@ def test_anatomy_across_an_unwelded_seam_gives_every_copy_the_same_data():
         on = dict(zip(crease.vertices.tolist(), map(tuple, crease.offsets_rel), strict=True))
         assert all(on.get(k) == on.get(twin) for k, twin in twins.items()), crease.name
     assert len(anatomy.accessories) == 0  # the cut patch is skin, not a piece riding it
+
+
+def test_closing_pivot_sets_back_only_as_far_as_a_tall_opening_needs():
+    """Margins on a circle of radius 1 about the eye's centre (origin; frame axes = world): an
+    opening of ±30° closes within 0.85 × 0.75 rad only from behind the centre, and exactly at the
+    reserve; one of ±15° keeps the centre."""
+    from mimetic.rig.anatomy.lids import CLOSING_RESERVE, LidRims, closing_pivot
+
+    def rims(half_angle: float) -> tuple[LidRims, np.ndarray]:
+        u = np.linspace(0.2, 0.8, 7)
+        up = np.column_stack([u, np.full(7, np.sin(half_angle)), np.full(7, np.cos(half_angle))])
+        low = up * np.array([1.0, -1.0, 1.0])
+        vertices = np.vstack([up, low])
+        upper, lower = np.arange(7), np.arange(7, 14)
+        empty = np.zeros(0, dtype=np.int64)
+        return LidRims(np.zeros(3), np.eye(3), 1.0, (upper, empty), (lower, empty), (upper, empty)), vertices
+
+    centre = np.zeros(3)
+    short, vertices = rims(np.radians(15))
+    np.testing.assert_array_equal(closing_pivot(short, vertices, centre, 0.75), centre)
+    tall, vertices = rims(np.radians(30))
+    pivot = closing_pivot(tall, vertices, centre, 0.75)
+    assert pivot[0] == 0 and pivot[1] == 0 and pivot[2] < 0
+    seen = 2 * np.arctan2(np.sin(np.radians(30)), np.cos(np.radians(30)) - pivot[2])
+    assert seen == pytest.approx(CLOSING_RESERVE * 0.75, abs=1e-6)

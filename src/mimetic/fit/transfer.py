@@ -32,7 +32,7 @@ from mimetic.mesh.geometry import connected_components, smooth_field, vertex_nor
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.mesh.openings import Opening, opening_margins, opening_sides
 from mimetic.rig.anatomy import closing_weights, find_accessories
-from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL
+from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL, closing_pivot, lid_rims
 from mimetic.rig.model import Bone, Rig, Wire
 
 MAX_INFLUENCES = 4
@@ -243,10 +243,12 @@ def _close_lids(
     bones: list[Bone],
     landmarks: dict[str, SurfacePoint],
     scale: float,
-) -> np.ndarray:
+) -> tuple[np.ndarray, list[Bone]]:
     """``weights`` (n, b) with each upper lid's column closing onto ``mesh``'s own lower lid at the
-    ``eyelid_upper`` channel's maximum, for the eyes whose bones, lid regions and corners the rig has."""
+    ``eyelid_upper`` channel's maximum, for the eyes whose bones, lid regions and corners the rig has,
+    and ``bones`` with each upper lid's pivot where that angle can close its eye (``closing_pivot``)."""
     names = [b.name for b in bones]
+    bones = list(bones)
     out = weights
     for side in ("L", "R"):
         corners = [f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"]
@@ -257,6 +259,24 @@ def _close_lids(
         if channel not in reference.channel_names:
             continue
         eye, lid = bones[names.index(f"eye_{side}")], bones[names.index(f"eyelid_upper_{side}")]
+        eye_corners = np.stack([landmarks[c].position(mesh.vertices, mesh.faces) for c in corners])
+        radius = float(np.linalg.norm(eye.tail - eye.head))
+        gaze = (eye.tail - eye.head) / radius
+        closed = reference.channel(channel).maximum
+        rims = lid_rims(
+            mesh.vertices,
+            mesh.faces,
+            regions,
+            side,
+            corners=eye_corners,
+            centre=eye.head,
+            radius=radius,
+            gaze=gaze,
+        )
+        if rims is not None:
+            pivot = closing_pivot(rims, mesh.vertices, lid.head, closed)
+            lid = Bone(lid.name, lid.parent, pivot, lid.tail + (pivot - lid.head))
+            bones[names.index(lid.name)] = lid
         out = closing_weights(
             mesh.vertices,
             mesh.faces,
@@ -266,15 +286,15 @@ def _close_lids(
             lid=names.index(f"eyelid_upper_{side}"),
             head=names.index("head"),
             pivot=lid.head,
-            corners=np.stack([landmarks[c].position(mesh.vertices, mesh.faces) for c in corners]),
+            corners=eye_corners,
             centre=eye.head,
-            radius=float(np.linalg.norm(eye.tail - eye.head)),
-            gaze=eye.tail - eye.head,
-            closed_rad=reference.channel(channel).maximum,
+            radius=radius,
+            gaze=gaze,
+            closed_rad=closed,
             clearance=LID_CLEARANCE_REL * scale,
             thickness=LID_THICKNESS_REL * scale,
         )
-    return out
+    return out, bones
 
 
 def _sided(
@@ -474,7 +494,7 @@ def transfer_rig(
 
     # the upper lids close onto the user's own lower lids at the channel's maximum (a closing made on
     # the reference's lids lands short of or past a scan's): mimetic.rig.anatomy.closing_weights
-    weights = _close_lids(reference, user_rig_mesh, weights, regions, bones, landmarks, scale)
+    weights, bones = _close_lids(reference, user_rig_mesh, weights, regions, bones, landmarks, scale)
     # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
     # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
     riding = find_accessories(user_rig_mesh, scale, sp.csr_matrix(weights))

@@ -57,7 +57,7 @@ mouth's middle, so no edge across the lower lip opens wide near a corner."""
 JAW_SMOOTHING_REL = 0.03
 """The jaw weight of the chin and the cheeks is smoothed over this × the head height (6 mm) last, so
 the chin's border with the cheeks is not a crease."""
-EYELID_CLOSED_RAD = 0.75  # upper-lid rotation that closes the eye (larger than any head's lid opening)
+EYELID_CLOSED_RAD = 0.75  # upper-lid rotation that closes the eye (taller openings: lids.closing_pivot)
 BONES = (
     "head",
     "jaw",
