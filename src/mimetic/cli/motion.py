@@ -53,7 +53,7 @@ task_command(
       mimetic animate head.mrig --clip clip.json --fps 60 -o anim.fbx
     """,
     arguments=(("source", "RIG", "The .mrig rig to animate."),),
-    output="anim.mp4 (a rendered video), anim.glb / .fbx / .usda / .usdc (UsdSkel), or the clip .json / .csv.",
+    output="anim.mp4 (a rendered video), anim.glb / .fbx / .usda / .usdc (UsdSkel), or the clip .json/.csv.",
 )
 
 task_command(
