@@ -214,7 +214,7 @@ def test_fbx_download_is_a_binary_fbx_of_the_same_scene(viewer, rig):
     from mimetic.blender import find_blender
 
     if find_blender() is None:
-        pytest.skip("no Blender (bpy) here yet: `mimetic setup fbx` installs it (tests/clients check FBX fully)")
+        pytest.skip("no Blender (bpy) here yet: `mimetic setup fbx` installs it (tests/clients check FBX)")
     viewer.timeline.set_key(0.0, viewer.session.pose())
     viewer.timeline.set_key(0.5, expression_pose(rig, "joy"))
     name, data = viewer._export_fbx()
