@@ -78,6 +78,8 @@ def test_export_fbx_is_quick_and_atomic(fbx, tmp_path, exported):
     good.write_bytes(b"a good file")
     with pytest.raises(WriteError):
         export_fbx(exported.rig, tmp_path / "missing" / "x.fbx")
+    with pytest.raises(ValueError, match=r"x\.glb: an FBX file must end in \.fbx"):
+        export_fbx(exported.rig, tmp_path / "x.glb")
     bad = {"jaw_open": np.full((3, 3), np.nan)}
     with pytest.raises(ValueError, match="jaw_open"):
         export_fbx(exported.rig, good, morph_targets=bad)
@@ -241,12 +243,18 @@ def test_an_fbx_head_in_millimetres_and_z_up_comes_in_y_up_in_millimetres(made, 
 
 
 def test_cli_info_and_rig_read_an_fbx_head(made, tmp_path):
+    from mimetic.rig.format import load_rig
     from mimetic.testing import run_cli
 
     result = run_cli("info", made["head_mm_z_up"], "--json")
     assert result.exit_code == 0, result.output
     report = json.loads(result.stdout)
     assert (report["kind"], report["units"], report["n_vertices"]) == ("mesh", "mm", 4221)
+    result = run_cli("rig", made["head_mm_z_up"], "-o", tmp_path / "head.mrig")
+    assert result.exit_code == 0, result.output
+    assert "fit accepted" in result.output
+    rig = load_rig(tmp_path / "head.mrig")
+    assert (rig.units, rig.n_vertices) == ("mm", 4221)
 
 
 @pytest.mark.parametrize(

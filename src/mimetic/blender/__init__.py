@@ -148,6 +148,8 @@ def install_bpy(progress: Progress | None = None) -> Blender:
                 output = _tail(result.stderr or result.stdout)
                 raise BlenderError(f"setting up FBX support failed at '{step}' in {target}: {output}")
         (building / ".installed").write_text(f"bpy=={BPY_VERSION}\n")
+        if target.exists() and not (target / ".installed").is_file():  # an install cut short by older code
+            shutil.rmtree(target)
         try:
             building.rename(target)
         except OSError:  # another process finished first: use its venv
