@@ -191,20 +191,25 @@ def test_assimp_sees_the_bones_and_one_morph_target_per_shape_key(assimp_read, e
 # --------------------------------------------------------------------------- commands that write FBX
 
 
-def test_cli_export_and_animate_write_fbx(blender_tool, exported, tmp_path):
+def test_cli_export_and_animate_write_fbx(bpy_python, exported, tmp_path):
+    """``export --arkit -o head.fbx``: the 52 ARKit shape keys, and an armature not named like its bone."""
+    from mimetic.animate.arkit import ARKIT_NAMES
     from mimetic.animate.clipfiles import save_clip
     from mimetic.rig.format import save_rig
     from mimetic.testing import run_cli
 
     rig = save_rig(exported.rig, tmp_path / "face.mrig")
-    result = run_cli("export", rig, "--arkit", "-o", tmp_path / "arkit.fbx")
+    result = run_cli("export", rig, "--arkit", "-o", tmp_path / "head.fbx")
     assert result.exit_code == 0, result.output
     assert "52 morph targets" in result.output
+    done = run_bpy(bpy_python, "fbx_check.py", tmp_path / "head.fbx", tmp_path, "0")
+    report = json.loads([x for x in done.stdout.splitlines() if x.startswith("BLENDER_JSON ")][-1][13:])
+    assert report["shape_keys"] == ["Basis", *ARKIT_NAMES]
+    assert report["armatures"] == ["head_rig"] and "head" in report["bones"]
     clip = save_clip(exported.clip, tmp_path / "clip.json")
     result = run_cli("animate", rig, "--clip", clip, "--fps", 30, "-o", tmp_path / "anim.fbx")
     assert result.exit_code == 0, result.output
-    for name in ("arkit.fbx", "anim.fbx"):
-        assert (tmp_path / name).read_bytes().startswith(b"Kaydara FBX Binary  \x00")
+    assert (tmp_path / "anim.fbx").read_bytes().startswith(b"Kaydara FBX Binary  \x00")
 
 
 # --------------------------------------------------------------------------- FBX heads in

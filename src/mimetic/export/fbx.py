@@ -7,7 +7,8 @@ importer and exports FBX 7.4 binary with its FBX exporter. No FBX bytes are writ
 What the file holds
 -------------------
 * the skinned mesh, named ``<name>_mesh``, one material per part, vertices in rig order;
-* the armature ``<name>``: one bone per rig joint (head, jaw, eyelids, eyes), no leaf bones;
+* the armature ``<name>`` (``<name>_rig`` if a bone has that name): one bone per rig joint (head,
+  jaw, eyelids, eyes), no leaf bones;
 * one shape key (FBX blend shape channel) per morph target, under its name (the muscle channels, or
   the 52 ARKit names);
 * with a clip, one take named ``clip_name`` (FBX "animation stack") sampled at every clip frame at
@@ -62,7 +63,8 @@ def export_fbx(
     clip_name : str
         The take's name.
     name : str, optional
-        The armature's name (the mesh is ``<name>_mesh``); defaults to the file's stem.
+        The armature's name (the mesh is ``<name>_mesh``); defaults to the file's stem. A bone's name
+        gets ``_rig`` appended (``head.fbx`` has the armature ``head_rig``).
     progress : callable(step, done, total), optional
         Told about installing Blender's bpy on first use (a minute or two).
 
@@ -86,6 +88,8 @@ def export_fbx(
             f"{path.name}: an FBX file must end in {SUFFIX} (got {path.suffix or 'no suffix'!r})"
         )
     name = name or path.stem
+    if name in rig.bone_names:  # head.fbx: an armature "head" over a bone "head" confuses importers
+        name = f"{name}_rig"
     with tempfile.TemporaryDirectory(prefix="mimetic-fbx-") as folder:
         glb = export_glb(rig, Path(folder) / f"{name}.glb", morph_targets=morph_targets, clip=clip,
                          clip_name=clip_name, target_normals=False, name=name)  # fmt: skip
