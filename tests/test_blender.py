@@ -41,7 +41,7 @@ def test_without_python_3_11_the_error_says_what_is_missing_in_one_line(cache, m
     assert not cache.exists() or not any(cache.iterdir())
 
 
-def test_a_failed_install_says_where_and_leaves_nothing_behind(cache, monkeypatch, tmp_path):
+def test_a_failed_install_says_where_and_leaves_nothing_behind(cache, monkeypatch, tmp_path, caplog):
     broken = executable(tmp_path / "python3.11", "#!/bin/sh\necho 'No module named venv' >&2\nexit 1\n")
     monkeypatch.setattr(blender, "python311", lambda: str(broken))
     steps = []
@@ -50,6 +50,9 @@ def test_a_failed_install_says_where_and_leaves_nothing_behind(cache, monkeypatc
     assert steps == ["set up FBX: create a Python 3.11 venv"]
     assert list(cache.iterdir()) == []  # the half-made venv is gone
     assert blender.find_blender() is None
+    with caplog.at_level("WARNING", logger="mimetic.blender"), pytest.raises(BlenderError):
+        blender.blender()  # first use without a progress display: a log line says why it waits
+    assert "installing Blender's bpy 5.0.1 for FBX" in caplog.text
 
 
 def test_the_override_names_a_blender_binary_or_a_python(cache, monkeypatch, tmp_path):

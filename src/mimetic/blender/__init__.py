@@ -17,6 +17,7 @@ with the user's file is one ``MIMETIC_ERROR <message>`` line and exit code 3.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 import subprocess
@@ -29,6 +30,8 @@ from pathlib import Path
 from typing import Any
 
 from mimetic.errors import MimeticError
+
+log = logging.getLogger(__name__)
 
 BPY_VERSION = "5.0.1"
 """The bpy release mimetic's FBX scripts are written and tested against."""
@@ -111,7 +114,8 @@ def _tail(text: str, lines: int = 8) -> str:
 
 
 def install_bpy(progress: Progress | None = None) -> Blender:
-    """Create the bpy venv (``python3.11 -m venv``, ``pip install bpy==BPY_VERSION``) and return it.
+    """Create the bpy venv (``python3.11 -m venv``, ``pip install bpy==BPY_VERSION``) and return it;
+    ``progress`` hears of each step (without it, one log warning says what is being installed).
 
     The venv is built in a temporary folder beside its place and renamed into place when complete,
     so an interrupted install leaves nothing half-made, and two processes installing at once end
@@ -130,6 +134,11 @@ def install_bpy(progress: Progress | None = None) -> Blender:
             f"or set {ENV_VAR} to a blender binary"
         )
     target = venv_dir()
+    if (
+        progress is None
+    ):  # a command without a progress display (mimetic rig head.fbx) still says why it waits
+        log.warning("installing Blender's bpy %s for FBX into %s (once: about 1 GB, a minute or two)",
+                    BPY_VERSION, target)  # fmt: skip
     target.parent.mkdir(parents=True, exist_ok=True)
     building = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     python = building / "bin" / "python"
