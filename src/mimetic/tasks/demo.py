@@ -32,9 +32,9 @@ to prepare and pose, are shown too: their muscle and expression sheets (``muscle
 ``expressions_tissue.png`` …), all four engines side by side, and a jaw drop simulated by the
 tissue engine (``jaw_drop_tissue.mp4``: the lips and cheeks lag the jaw and settle); and the
 animation as FBX beside its GLB (``animation.fbx``, through Blender, installed on first use; a
-note says why when it cannot be). Real scanned
-heads (ICT-FaceKit, from the shared test data) are rigged by ``examples/real_heads.py``, which
-``make demo-all`` runs after this; the library itself knows no particular head.
+note says why when it cannot be). Real scanned heads (ICT-FaceKit, from the shared test data) are
+rigged by ``examples/real_heads.py``, which ``make demo-all`` runs after this; the library itself
+knows no particular head.
 """
 
 from __future__ import annotations
