@@ -97,9 +97,9 @@ def main() -> None:
     height_m = float(np.ptp(vertices, axis=0).max()) * cm_per_value / 100.0
     if height_m > BODY_HEIGHT_M:
         fail(
-            f"holds {len(meshes)} meshes {height_m:.2f} m across by its units: a whole body or a "
-            "scene, not a head. Export the head's meshes alone (Blender: select them, File > Export > FBX, "
-            "Limit to Selected Objects) and rig that file."
+            f"holds {len(meshes)} mesh{'es' * (len(meshes) > 1)} {height_m:.2f} m across by its units: "
+            "a whole body or a scene, not a head. Export the head's meshes alone (Blender: select them, "
+            "File > Export > FBX, Limit to Selected Objects) and rig that file."
         )
     np.savez(out, vertices=vertices, faces=np.concatenate(faces), labels=np.concatenate(labels))
     report = {"units": units, "unit_scale_cm": cm_per_unit, "parts": parts, "vertices": offset}
