@@ -22,7 +22,7 @@ Meshes: ``load_mesh``, ``save_mesh``, ``Mesh``. The built-in head: ``make_head``
 ``auto_landmarks``. Rigs: ``Rig``, ``load_rig``, ``save_rig``. Deforming: ``make_engine``,
 ``bake``, ``evaluate_basis``, ``pose``. Driving: ``expression_pose``, ``blend``,
 ``load_library``, ``arkit_pose``, ``facs_pose``, ``Clip``, ``from_expressions``, ``load_clip``,
-``save_clip``. Delivering: ``export_glb``, ``export_usd``, ``export_obj_sequence``,
+``save_clip``. Delivering: ``export_glb``, ``export_fbx``, ``export_usd``, ``export_obj_sequence``,
 ``morph_targets``, ``arkit_shapes``, ``render_mesh``, ``render_pose``, ``render_clip``, ``save_image``.
 Speech: ``lip_sync``, ``load_timings``, ``LiveLipSync``. Capture: ``Trajectories``, ``read_trajectories``,
 ``track_video``, ``marker_set``, ``solve_performance``, ``retarget``. Many at once: ``run_batch``,
@@ -86,6 +86,7 @@ _API = {
     "save_clip": "mimetic.animate.clipfiles",
     "export_glb": "mimetic.export.gltf",
     "morph_targets": "mimetic.export.gltf",
+    "export_fbx": "mimetic.export.fbx",
     "export_usd": "mimetic.export.usd",
     "export_obj_sequence": "mimetic.export.obj_sequence",
     "arkit_shapes": "mimetic.export.arkit",

@@ -7,7 +7,9 @@ targets and a 1 s clip at 60 fps) in a real client and compares what the client 
 * node packages (``three``, ``gltf-validator``, pinned in package.json / package-lock.json) in
   ``tests/clients/node_modules`` by ``npm ci``;
 * Blender as a Python module (``bpy``) in its own venv under ``~/.cache/mimetic/bpy-<version>``
-  (bpy pins numpy < 2 and Python 3.11);
+  (bpy pins numpy < 2 and Python 3.11), made by ``mimetic.blender`` as for users (``mimetic setup
+  fbx``), or ``$MIMETIC_BLENDER``;
+* assimp (``assimp-utils``, a second FBX reader) is a system package: ``.ci/run`` installs it;
 * Chromium is a system package: ``.ci/run`` installs it (``apt-get install chromium``).
 
 A client that cannot be installed skips its test with the reason, except on CI (``CI=true``),
@@ -20,7 +22,6 @@ import hashlib
 import os
 import shutil
 import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,10 +41,6 @@ def unavailable(reason: str) -> None:
     if os.environ.get("CI", "").lower() == "true":
         pytest.fail(f"{reason} (CI=true requires this client)")
     pytest.skip(reason)
-
-
-def cache_dir() -> Path:
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "mimetic"
 
 
 def run(command: list[str], *, timeout: float, cwd: Path | None = None) -> subprocess.CompletedProcess:
@@ -147,40 +144,35 @@ def node() -> str:
     return path
 
 
-def python311() -> str | None:
-    if sys.version_info[:2] == (3, 11):
-        return sys.executable
-    return shutil.which("python3.11")
+@pytest.fixture(scope="session")
+def blender_tool():
+    """The Blender (``mimetic.blender.Blender``) the package uses: found, or installed on first use."""
+    from mimetic.blender import BlenderError, blender
 
-
-BPY_VERSION = "5.0.1"
+    start = time.monotonic()
+    try:
+        tool = blender()
+    except BlenderError as error:
+        unavailable(str(error))
+    print(f"blender: {tool.program} ({time.monotonic() - start:.1f} s to find or install)")
+    return tool
 
 
 @pytest.fixture(scope="session")
-def bpy_python() -> Path:
-    """The python of a venv with bpy==BPY_VERSION, created on first use."""
-    venv = cache_dir() / f"bpy-{BPY_VERSION}"
-    python = venv / "bin" / "python"
-    stamp = venv / ".installed"
-    if stamp.exists() and python.exists():
-        return python
-    base = python311()
-    if base is None:
-        unavailable(f"bpy {BPY_VERSION} needs Python 3.11; no python3.11 found")
-    start = time.monotonic()
-    venv.parent.mkdir(parents=True, exist_ok=True)
-    for command, timeout in (
-        ([base, "-m", "venv", "--clear", str(venv)], 120),
-        ([str(python), "-m", "pip", "install", "--quiet", f"bpy=={BPY_VERSION}"], 1800),
-    ):
-        done = run(command, timeout=timeout)
-        if done.returncode != 0:
-            unavailable(
-                f"installing bpy {BPY_VERSION} failed ({' '.join(command[:4])} …):\n{tail(done.stderr)}"
-            )
-    stamp.write_text(f"bpy=={BPY_VERSION}\n")
-    print(f"installed bpy {BPY_VERSION} in {venv} in {time.monotonic() - start:.0f} s")
-    return python
+def bpy_python(blender_tool) -> Path:
+    """The python of the venv with bpy (the test scripts run as ``python SCRIPT ARGS``)."""
+    if blender_tool.is_binary:
+        unavailable(f"the client checks run bpy as a Python module; MIMETIC_BLENDER={blender_tool.program}")
+    return blender_tool.program
+
+
+@pytest.fixture(scope="session")
+def assimp() -> str:
+    """Debian's assimp command (``apt-get install assimp-utils``; .ci/run installs it)."""
+    path = shutil.which("assimp")
+    if path is None:
+        unavailable("assimp is not installed (apt-get install assimp-utils)")
+    return path
 
 
 @pytest.fixture(scope="session")

@@ -210,6 +210,18 @@ def test_glb_download_has_a_target_per_muscle_and_the_clip(viewer, rig, tmp_path
     assert summary["animations"] and len(summary["target_names"]) >= len(rig.muscles)
 
 
+def test_fbx_download_is_a_binary_fbx_of_the_same_scene(viewer, rig):
+    from mimetic.blender import find_blender
+
+    if find_blender() is None:
+        pytest.skip("no Blender (bpy) here yet: `mimetic setup fbx` installs it (tests/clients check FBX)")
+    viewer.timeline.set_key(0.0, viewer.session.pose())
+    viewer.timeline.set_key(0.5, expression_pose(rig, "joy"))
+    name, data = viewer._export_fbx()
+    assert name == "small.fbx"
+    assert data.startswith(b"Kaydara FBX Binary  \x00") and len(data) > 100_000
+
+
 # ---- landmark picking
 
 

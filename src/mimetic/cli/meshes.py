@@ -56,7 +56,7 @@ task_command(
       mimetic info scan.obj
       mimetic info scan.stl --units mm --json
     """,
-    arguments=(("source", "FILE", "A mesh (.obj .ply .stl .glb .gltf) or a rig (.mrig)."),),
+    arguments=(("source", "FILE", "A mesh (.obj .ply .stl .glb .gltf .fbx) or a rig (.mrig)."),),
     output=None,
     extras={"as_json": (bool, typer.Option(False, "--json", help="Print the report as JSON."))},
     show=_show_info,

@@ -43,16 +43,17 @@ task_command(
     app,
     "animate",
     animate.TASK,
-    """Play a clip on a rig: render an MP4 (with optional audio) or export an animated GLB or USD.
+    """Play a clip on a rig: render an MP4 (with optional audio) or export an animated GLB, FBX or USD.
 
     Examples:
 
     \b
       mimetic animate head.mrig --clip clip.json -o anim.mp4 --audio speech.wav
       mimetic animate head.mrig --clip clip.json --fps 60 -o anim.glb
+      mimetic animate head.mrig --clip clip.json --fps 60 -o anim.fbx
     """,
     arguments=(("source", "RIG", "The .mrig rig to animate."),),
-    output="anim.mp4 (a rendered video), anim.glb or anim.usda/.usdc (UsdSkel), or the clip .json/.csv.",
+    output="anim.mp4 (a rendered video), anim.glb / .fbx / .usda / .usdc (UsdSkel), or the clip .json/.csv.",
 )
 
 task_command(
@@ -71,5 +72,5 @@ task_command(
       mimetic speak head.mrig --text "Hello there" --synthesize -o hello.mp4
     """,
     arguments=(("source", "RIG", "The .mrig rig that speaks."),),
-    output="talk.mp4 (video with the sound), talk.glb / .usda / .usdc, or the clip as .json / .csv.",
+    output="talk.mp4 (video with the sound), talk.glb / .fbx / .usda / .usdc, or the clip as .json / .csv.",
 )

@@ -23,7 +23,7 @@ task_command(
       mimetic rig my_head.obj -o my_head.mrig
       mimetic rig scan.stl --units mm --landmarks dlib68.csv -o scan.mrig
     """,
-    arguments=(("source", "MESH", "The head mesh to rig (.obj .ply .stl .glb .gltf)."),),
+    arguments=(("source", "MESH", "The head mesh to rig (.obj .ply .stl .glb .gltf .fbx)."),),
     output="The .mrig file to write.",
 )
 
@@ -49,16 +49,17 @@ task_command(
     app,
     "export",
     export.TASK,
-    """Export a rig as GLB or USD with named morph targets and its skeleton (ARKit-52 with --arkit).
+    """Export a rig as GLB, FBX or USD with named morph targets and its skeleton (ARKit-52 with --arkit).
 
     Examples:
 
     \b
       mimetic export head.mrig -o head.glb
+      mimetic export head.mrig --arkit -o head_arkit.fbx
       mimetic export head.mrig --arkit -o head_arkit.usdc --obj-dir arkit_shapes/
     """,
     arguments=(("source", "RIG", "The .mrig rig to export."),),
-    output="The .glb (or .usda/.usdc, UsdSkel) file to write.",
+    output="The .glb, .fbx (through Blender, installed on first use) or .usda/.usdc (UsdSkel) file to write.",
 )
 
 

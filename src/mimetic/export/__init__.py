@@ -1,9 +1,10 @@
-"""Files for other tools: an animatable glTF (.glb), USD (UsdSkel, with the ``[usd]`` extra) and
-per-frame OBJ sequences.
+"""Files for other tools: an animatable glTF (.glb), FBX (through Blender's own exporter), USD
+(UsdSkel, with the ``[usd]`` extra) and per-frame OBJ sequences.
 
 Nothing else in mimetic imports this package.
 """
 
+from mimetic.export.fbx import export_fbx
 from mimetic.export.gltf import (
     ExportError,
     bone_channels,
@@ -21,6 +22,7 @@ __all__ = [
     "ExportError",
     "bone_channels",
     "check_usd",
+    "export_fbx",
     "export_glb",
     "export_obj_sequence",
     "export_usd",

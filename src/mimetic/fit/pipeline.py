@@ -222,7 +222,7 @@ def rig_mesh(
     Parameters
     ----------
     mesh : Mesh or path
-        The head, or a mesh file (.obj .ply .stl .glb .gltf) read with ``load_mesh(path, units=units)``.
+        The head, or a mesh file (.obj .ply .stl .glb .gltf .fbx) read with ``load_mesh(path, units=units)``.
     landmarks : Landmarks, path or None
         Landmarks; a landmark file (JSON or CSV, see ``read_landmarks``); or None to find them with
         MediaPipe on renders of the mesh (``auto_landmarks``, the ``[track]`` extra).

@@ -30,9 +30,11 @@ Writes, into one folder (named steps report progress as they go):
 With ``all`` (``mimetic demo --all``, ``make demo-all``) the physics engines, which take minutes
 to prepare and pose, are shown too: their muscle and expression sheets (``muscles_fem.png``,
 ``expressions_tissue.png`` …), all four engines side by side, and a jaw drop simulated by the
-tissue engine (``jaw_drop_tissue.mp4``: the lips and cheeks lag the jaw and settle). Real scanned
-heads (ICT-FaceKit, from the shared test data) are rigged by ``examples/real_heads.py``, which
-``make demo-all`` runs after this; the library itself knows no particular head.
+tissue engine (``jaw_drop_tissue.mp4``: the lips and cheeks lag the jaw and settle); and the
+animation as FBX beside its GLB (``animation.fbx``, through Blender, installed on first use; a
+note says why when it cannot be). Real scanned heads (ICT-FaceKit, from the shared test data) are
+rigged by ``examples/real_heads.py``, which ``make demo-all`` runs after this; the library itself
+knows no particular head.
 """
 
 from __future__ import annotations
@@ -93,7 +95,9 @@ def run(
         engines[name] = make_engine(default_rig, name, progress=stage(progress, f"prepare {name}"))
     files += _action_sheets(default_rig, engines, out, renderer, say)
     files += _expressions(default_rig, engines["wire"], out / "expressions", SIZE, renderer, say)
-    animated, notes = _animation(default_rig, other_rig, engines["wire"], out, renderer, say, options.all)
+    animated, notes = _animation(
+        default_rig, other_rig, engines["wire"], out, renderer, say, extras=options.all
+    )
     files += animated
     summary = (
         f"{len(files)} files: {len(rigs)} heads rigged, {len(engines)} engines, animation, speech, capture"
@@ -153,11 +157,11 @@ TALK = (
 
 
 def _animation(
-    rig: Rig, other: Rig, engine: Engine, out: Path, renderer: Renderer, say: Progress, audio_only: bool
+    rig: Rig, other: Rig, engine: Engine, out: Path, renderer: Renderer, say: Progress, *, extras: bool
 ) -> tuple[list[Path], list[str]]:
-    """An expression sequence as a clip, an animated GLB, an MP4; the ARKit-52 GLB; a talking head (and,
-    with ``audio_only``, one from its sound alone); the sequence captured from ``rig`` and played on
-    ``other``."""
+    """An expression sequence as a clip, an animated GLB, an MP4; the ARKit-52 GLB; a talking head; the
+    sequence captured from ``rig`` and played on ``other``. With ``extras`` also the animation as FBX
+    and a talking head from its sound alone."""
     from mimetic.animate.clipfiles import save_clip
     from mimetic.animate.keyframes import from_expressions
     from mimetic.engines.bake import bake
@@ -172,6 +176,18 @@ def _animation(
     say("animated GLB", 0, 1)
     targets = morph_targets_from_basis(basis, rig)
     files.append(export_glb(rig, out / "animation.glb", morph_targets=targets, clip=clip))
+    fbx_notes = []
+    if extras:
+        from mimetic.blender import BlenderError
+        from mimetic.export.fbx import export_fbx
+
+        say("animated FBX", 0, 1)
+        try:
+            files.append(
+                export_fbx(rig, out / "animation.fbx", morph_targets=targets, clip=clip, progress=say)
+            )
+        except BlenderError as error:
+            fbx_notes.append(f"animation.fbx skipped: {error}")
     video = out / "animation.mp4"
     files.append(
         render_clip(
@@ -186,9 +202,9 @@ def _animation(
     )
     say("ARKit-52 shapes", 0, 1)
     files.append(export_glb(rig, out / "head_arkit.glb", morph_targets=arkit_shapes(engine)))
-    talk, notes = _talk(rig, basis, out, renderer, say, audio_only)
+    talk, notes = _talk(rig, basis, out, renderer, say, extras)
     captured = _capture(rig, other, basis, clip, out, renderer, say)
-    return files + talk + captured, notes
+    return files + talk + captured, fbx_notes + notes
 
 
 CAPTURE_TURN_DEG = (15.0, 8.0, 4.0)

@@ -1,4 +1,4 @@
-"""``mimetic export``: a rig as a GLB or USD scene with named morph targets and its skeleton."""
+"""``mimetic export``: a rig as a GLB, FBX or USD scene with named morph targets and its skeleton."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ class ExportOptions(TaskOptions):
 def run(
     source: Path, output: Path, options: ExportOptions = ExportOptions(), progress: Progress | None = None
 ) -> Result:
-    """Export the rig ``source`` to ``output`` (.glb, or .usda/.usdc/.usd with UsdSkel): one morph
+    """Export the rig ``source`` to ``output`` (.glb, .fbx, or .usda/.usdc/.usd with UsdSkel): one morph
     target per muscle channel, or the ARKit-52 shapes baked from the muscles."""
     from mimetic.tasks.outputs import write_scene
     from mimetic.tasks.prepared import prepared_rig
@@ -51,7 +51,7 @@ def run(
         targets = arkit_shapes(engine)
     else:
         targets = prepared.morph_targets(options.engine, stage(progress, f"bake {options.engine}"))
-    written = [write_scene(prepared, output, targets)]
+    written = [write_scene(prepared, output, targets, progress=progress)]
     if options.obj_dir is not None:
         from mimetic.mesh.io import save_mesh
 

@@ -3,7 +3,8 @@
 ``write_clip(prepared, clip, out, ...)`` is how every task that makes motion delivers it
 (animate, speak, capture, retarget; the web viewer's downloads): a clip file (``.json``,
 ``.csv``), a rendered video (``.mp4``, with its sound), or an animated scene (``.glb``; ``.usda``,
-``.usdc``, ``.usd`` with UsdSkel, the ``[usd]`` extra) with one morph target per muscle channel.
+``.usdc``, ``.usd`` with UsdSkel, the ``[usd]`` extra; ``.fbx`` through Blender's FBX exporter) with
+one morph target per muscle channel.
 ``write_scene`` writes a scene with any morph targets (the ARKit-52 export).
 """
 
@@ -22,18 +23,26 @@ IMAGES = (".png", ".jpg", ".jpeg", ".webp")
 MESHES = SUPPORTED_FORMATS
 CLIP_FILES = (".json", ".csv")
 VIDEOS = (".mp4",)
-SCENES = (".glb", ".usda", ".usdc", ".usd")
+SCENES = (".glb", ".fbx", ".usda", ".usdc", ".usd")
 CLIPS = (*CLIP_FILES, *VIDEOS, *SCENES)
 """Everything ``write_clip`` writes."""
 
 
-def write_scene(prepared: Prepared, out: Path, targets: dict, clip: Clip | None = None) -> Path:
-    """The rig as a GLB, or USD (UsdSkel; the ``[usd]`` extra), by ``out``'s suffix, with ``targets``
-    (name → (n, 3) displacements) as morph targets and ``clip`` as its animation."""
-    if Path(out).suffix.lower() == ".glb":
+def write_scene(
+    prepared: Prepared, out: Path, targets: dict, clip: Clip | None = None, progress: Progress | None = None
+) -> Path:
+    """The rig as a GLB, FBX (Blender's exporter, installed on first use: ``progress`` hears of it) or
+    USD (UsdSkel; the ``[usd]`` extra), by ``out``'s suffix, with ``targets`` (name → (n, 3)
+    displacements) as morph targets and ``clip`` as its animation."""
+    suffix = Path(out).suffix.lower()
+    if suffix == ".glb":
         from mimetic.export.gltf import export_glb
 
         return export_glb(prepared.rig, out, morph_targets=targets, clip=clip)
+    if suffix == ".fbx":
+        from mimetic.export.fbx import export_fbx
+
+        return export_fbx(prepared.rig, out, morph_targets=targets, clip=clip, progress=progress)
     from mimetic.export.usd import export_usd
 
     return export_usd(prepared.rig, out, morph_targets=targets, clip=clip)
@@ -60,7 +69,7 @@ def write_clip(
         Sampled values (frames, c) at their fps, or a keyframe clip: written as it is to ``.json``
         (its layers kept), else sampled at ``fps`` over the rig's channels.
     out : Path
-        ``.json`` / ``.csv`` clip file, ``.mp4`` video, ``.glb`` / ``.usd*`` animated scene.
+        ``.json`` / ``.csv`` clip file, ``.mp4`` video, ``.glb`` / ``.fbx`` / ``.usd*`` animated scene.
     engine : str
         The engine that deforms the video's frames, or is baked into the scene's morph targets.
     size : int
@@ -92,4 +101,4 @@ def write_clip(
             progress=stage(progress, "video"),
         )
     targets = prepared.morph_targets(engine, stage(progress, f"bake {engine}"))
-    return write_scene(prepared, out, targets, sampled)
+    return write_scene(prepared, out, targets, sampled, progress)

@@ -1,7 +1,7 @@
 """The web viewer's downloads, made by the same tasks as the command line (``mimetic.tasks``).
 
-The GLB is ``mimetic export`` (no clip on the timeline) or ``mimetic animate`` (the timeline's clip
-sampled at ``session.FPS``) of the viewer's rig and engine; the PNG is ``mimetic pose`` of what the
+The GLB or FBX is ``mimetic export`` (no clip on the timeline) or ``mimetic animate`` (the timeline's
+clip sampled at ``session.FPS``) of the viewer's rig and engine; the PNG is ``mimetic pose`` of what the
 page shows, a front close-up posed by the viewer's own prepared engine. Each is written into a
 temporary folder (removed afterwards) and handed to the browser as bytes.
 """
@@ -20,14 +20,15 @@ from mimetic.view.session import FPS
 PNG_SIZE = 768
 
 
-def glb_bytes(rig_file: Path, engine: str, clip: KeyframeClip | None = None) -> bytes:
-    """The rig file as a GLB with one morph target per muscle (``engine`` baked) and, when given,
-    ``clip`` sampled at ``FPS`` as its animation: what ``mimetic export`` / ``mimetic animate`` write."""
+def scene_bytes(rig_file: Path, engine: str, clip: KeyframeClip | None = None, suffix: str = ".glb") -> bytes:
+    """The rig file as a GLB (or ``suffix`` ".fbx": FBX through Blender) with one morph target per
+    muscle (``engine`` baked) and, when given, ``clip`` sampled at ``FPS`` as its animation: what
+    ``mimetic export`` / ``mimetic animate`` write."""
     from mimetic.animate.clipfiles import save_clip
     from mimetic.tasks import animate, export
 
     with tempfile.TemporaryDirectory(prefix="mimetic-view-") as folder:
-        out = Path(folder) / "head.glb"
+        out = Path(folder) / f"head{suffix}"
         if clip is None:
             export.run(rig_file, out, export.ExportOptions(engine=engine))
         else:

@@ -628,6 +628,7 @@ class Viewer:
         gui.add_markdown("Downloads of what the viewer shows, with the current engine.")
         for label, action in (
             ("GLB (morph targets, timeline clip)", self._export_glb),
+            ("FBX (the same, through Blender)", self._export_fbx),
             ("PNG (front view)", self._export_png),
             ("Clip JSON", self._export_clip),
         ):
@@ -992,9 +993,14 @@ class Viewer:
         self.server.send_file_download(name, data, save_immediately=True)
 
     def _export_glb(self) -> tuple[str, bytes]:
-        from mimetic.view.exports import glb_bytes
+        from mimetic.view.exports import scene_bytes
 
-        return f"{self.source.stem}.glb", glb_bytes(self.source, self.engine, self.timeline.clip())
+        return f"{self.source.stem}.glb", scene_bytes(self.source, self.engine, self.timeline.clip())
+
+    def _export_fbx(self) -> tuple[str, bytes]:
+        from mimetic.view.exports import scene_bytes
+
+        return f"{self.source.stem}.fbx", scene_bytes(self.source, self.engine, self.timeline.clip(), ".fbx")
 
     def _export_png(self) -> tuple[str, bytes]:
         from mimetic.view.exports import png_bytes

@@ -1,4 +1,4 @@
-"""Read and write meshes (.obj, .ply, .stl, .glb, .gltf) without changing their vertex order.
+"""Read and write meshes (.obj, .ply, .stl, .glb, .gltf; read .fbx) without changing their vertex order.
 
 Every rig element refers to vertices by index, so a mesh must come back from disk with exactly
 the vertices, in exactly the order, it was written with. What each format keeps:
@@ -13,7 +13,11 @@ format    vertex order   precision   parts                        colours / unit
                                                                   mesh ``extras.units``
 .gltf     exact          float32     one node per part            as .glb
 .stl      first use      float32     not stored (merged)          none / none
+.fbx      exact          float32     mesh objects (or materials)  none / ``UnitScaleFactor``
 ========  =============  ==========  ===========================  ====================================
+
+FBX is read only, and through Blender's own importer (``mimetic.blender``, bpy installed on first
+use): binary FBX only, turned from the file's declared axes into +Y up, +Z forward.
 
 OBJ is read and written by mimetic itself: trimesh 5.2 splits OBJ vertices by their ``vt``/``vn``
 indices (or, with ``maintain_order=True``, drops unused trailing vertices), and returns groups in
@@ -29,8 +33,8 @@ opacity) and a multi-part glTF's primitive materials become ``Mesh.materials`` o
 after them, and their flat colours become ``Mesh.colors`` when they colour every face. Saving
 keeps those colours (as vertex colours) and parts, not the materials themselves.
 
-Modules: ``common`` (what the readers share), ``obj``, ``ply``, ``stl``, ``gltf`` (one per format:
-``read_*`` bytes to arrays, ``encode_*`` a mesh to bytes).
+Modules: ``common`` (what the readers share), ``obj``, ``ply``, ``stl``, ``gltf``, ``fbx`` (one per
+format: ``read_*`` bytes to arrays, ``encode_*`` a mesh to bytes).
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from mimetic.atomic import atomic_write_bytes
 from mimetic.errors import MeshError, MimeticWarning
 from mimetic.inputs import read_input
 from mimetic.mesh.io.common import check_loaded, file_units, log
+from mimetic.mesh.io.fbx import read_fbx
 from mimetic.mesh.io.gltf import encode_glb, encode_gltf, part_blocks, read_glb, read_gltf
 from mimetic.mesh.io.obj import encode_obj, read_obj
 from mimetic.mesh.io.ply import encode_ply, read_ply
@@ -52,12 +57,30 @@ from mimetic.mesh.io.stl import encode_stl, read_stl
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import check_units, detect_units, largest_extent, units_for_extent
 
-__all__ = ["SUPPORTED_FORMATS", "encode_obj", "load_mesh", "part_blocks", "read_input", "save_mesh"]
+__all__ = [
+    "READ_FORMATS",
+    "SUPPORTED_FORMATS",
+    "encode_obj",
+    "load_mesh",
+    "part_blocks",
+    "read_input",
+    "save_mesh",
+]
 
 SUPPORTED_FORMATS = (".obj", ".ply", ".stl", ".glb", ".gltf")
 """File extensions :func:`load_mesh` and :func:`save_mesh` accept (case-insensitive)."""
 
-READERS = {".obj": read_obj, ".ply": read_ply, ".stl": read_stl, ".glb": read_glb, ".gltf": read_gltf}
+READ_FORMATS = (*SUPPORTED_FORMATS, ".fbx")
+"""File extensions :func:`load_mesh` accepts: the written ones and FBX (through Blender)."""
+
+READERS = {
+    ".obj": read_obj,
+    ".ply": read_ply,
+    ".stl": read_stl,
+    ".glb": read_glb,
+    ".gltf": read_gltf,
+    ".fbx": read_fbx,
+}
 """Each format's reader: (bytes, file name for messages, path) → arrays in file order."""
 
 ENCODERS = {
@@ -76,7 +99,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: 
     Parameters
     ----------
     path : path-like
-        A .obj, .ply, .stl, .glb or .gltf file (a .gltf may refer to .bin files beside it).
+        A .obj, .ply, .stl, .glb, .gltf (it may refer to .bin files beside it) or binary .fbx file
+        (read by Blender's importer in a separate process; see the module table).
     units : {"mm", "cm", "dm", "m", "in"}, optional
         The unit the coordinates are in. It wins over anything else; the coordinates are never
         rescaled (use :func:`~mimetic.mesh.units.convert_units` for that). When omitted, the units
@@ -104,7 +128,7 @@ def load_mesh(path: str | os.PathLike[str], *, units: str | None = None, check: 
     """
     src = str(path)
     path = Path(path)
-    ext = _extension(path, src)
+    ext = _extension(path, src, READ_FORMATS)
     if units is not None:
         units = check_units(units)
     data = read_input(path, src, MeshError, "mesh")
@@ -179,7 +203,7 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike[str]) -> Path:
     """
     src = str(path)
     path = Path(path)
-    ext = _extension(path, src)
+    ext = _extension(path, src, SUPPORTED_FORMATS)
     data = ENCODERS[ext](mesh, src)
     atomic_write_bytes(path, data)
     log.info("wrote %s: %d vertices, %d faces", src, mesh.n_vertices, mesh.n_faces)
@@ -189,12 +213,12 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike[str]) -> Path:
 # --- shared helpers -------------------------------------------------------------------------------
 
 
-def _extension(path: Path, src: str) -> str:
+def _extension(path: Path, src: str, formats: tuple[str, ...]) -> str:
     ext = path.suffix.lower()
-    if ext not in SUPPORTED_FORMATS:
+    if ext not in formats:
         shown = f"'{path.suffix}'" if path.suffix else "no extension"
         raise MeshError(
-            f"{src}: unsupported mesh format ({shown}); supported: {', '.join(SUPPORTED_FORMATS)}. "
+            f"{src}: unsupported mesh format ({shown}); supported: {', '.join(formats)}. "
             "Convert the file (e.g. in Blender) or fix its extension."
         )
     return ext
