@@ -9,7 +9,7 @@ capture_app = group(
     "capture", "Performance capture: markers, landmarks or video → activations; retarget to another head."
 )
 RIG = ("rig", "RIG", "The .mrig rig to solve on.")
-OUT = "clip.json / .csv, or anim.mp4 / .glb / .usda; the report NAME.report.json beside it."
+OUT = "clip.json / .csv, or anim.mp4 / .glb / .usda / .fbx; the report NAME.report.json beside it."
 
 task_command(
     capture_app,
@@ -68,5 +68,5 @@ task_command(
         ("source", "CLIP", "A solved clip (.json from `capture solve`)."),
         ("rig", "RIG", "The .mrig rig to play it on."),
     ),
-    output="anim.mp4 / .glb / .usda, or the clip as .json / .csv.",
+    output="anim.mp4 / .glb / .usda / .fbx, or the clip as .json / .csv.",
 )
