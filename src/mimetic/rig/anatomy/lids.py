@@ -96,7 +96,9 @@ SMOOTHING = 1e-5
 BISECTIONS = 40
 CLOSING_RESERVE = 0.85
 """The upper lid's pivot is set back behind the eye's centre (``closing_pivot``) until every column of
-its margin closes within this share of the closing angle; the per-column weights do the rest."""
+its margin closes within this share of the closing angle; the per-column weights do the rest. Not
+fitted (room for the sculptor and the smoothing of the weights); checked on ICT identities s2-s6 σ2
+and s101-s106 (``benchmarks/sweep_motion.py``)."""
 LID_BAND_REL = 0.3
 """The upper lid's skin follows its margin to this distance from it along the skin, × the eye's width
 (the corners' distance; 0.9 cm on ICT's 3 cm eyes), fading from 1 at the margin (``lid_profile``).
