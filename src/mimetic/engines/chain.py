@@ -25,15 +25,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import LinearNDInterpolator
 
 from mimetic.engines.attach import ride
+from mimetic.engines.kernels import blend_skinning, bridged_margin, channel_offsets, least_opening
 from mimetic.engines.muscles import LID_RIGID_WEIGHT
-from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
+from mimetic.engines.skinning import IDENTITY, bone_transforms
 from mimetic.head.parts import eyeball_profile
 from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, LID_THICKNESS_REL, eye_frame
 from mimetic.rig.model import Rig
@@ -68,13 +68,20 @@ class EyeContact:
     bridge: float  # rig units along u: the widest dip of the lower margin the upper lid bridges
 
 
-def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """``angle (k,) -> d turned by angle``: vectors ``d`` (k, 3) turned about the unit ``axis`` (3,) by
-    Rodrigues' formula, its angle-free parts computed once (a contact's search turns them often)."""
+def _turn_parts(d: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The angle-free parts (along, across, cross), each (k, 3), of Rodrigues' formula for vectors ``d``
+    (k, 3) turned about the unit ``axis`` (3,): d turned by θ is along + across cos θ + cross sin θ."""
     along = np.outer(d @ axis, axis)
     across = d - along
     x, y, z = axis
     cross = np.column_stack([y * d[:, 2] - z * d[:, 1], z * d[:, 0] - x * d[:, 2], x * d[:, 1] - y * d[:, 0]])
+    return along, across, cross
+
+
+def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``angle (k,) -> d turned by angle``: vectors ``d`` (k, 3) turned about the unit ``axis`` (3,) by
+    Rodrigues' formula, its angle-free parts computed once (``_turn_parts``)."""
+    along, across, cross = _turn_parts(d, axis)
     return lambda angle: along + across * np.cos(angle)[:, None] + cross * np.sin(angle)[:, None]
 
 
@@ -86,21 +93,19 @@ def _lower_line(points: np.ndarray, span: float) -> tuple[np.ndarray, np.ndarray
     point. ``step`` is the median spacing along u (0 for fewer than two points)."""
     order = np.argsort(points[:, 0], kind="stable")
     u, v = points[order, 0], points[order, 1]
-    step = float(np.median(np.diff(u))) if len(u) > 1 else 0.0
+    step = _median(np.diff(u)) if len(u) > 1 else 0.0
     if len(u) < 3:
         return u, v, step
-    width = u[None, :] - u[:, None]  # (a, b): the chord from point a to point b spans u_b - u_a
-    slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
-    chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]  # (a, b, i)
-    usable = _between(len(u)) & (width <= span)[:, :, None]  # a < i < b, chord no wider than span
-    return u, np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1))), step
+    # v_i = max(v_i, v_a + (u_i - u_a) (v_b - v_a) / (u_b - u_a)) over a < i < b with u_b - u_a <= span
+    return u, bridged_margin(u, v, span), step
 
 
-@lru_cache(maxsize=8)
-def _between(j: int) -> np.ndarray:
-    """(j, j, j) bool: ``[a, b, i]`` is whether a < i < b."""
-    k = np.arange(j)
-    return (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])
+def _median(x: np.ndarray) -> float:
+    """``float(np.median(x))`` for a non-empty (k,) array without NaN, without np.median's overhead
+    (80 µs a call, a quarter of the lid contact's time)."""
+    x = np.sort(x)
+    middle = len(x) // 2
+    return float(x[middle] if len(x) % 2 else (x[middle - 1] + x[middle]) / 2)
 
 
 def _clearance(
@@ -209,29 +214,24 @@ def keep_lids_apart(
             ids, floor, at_u, w = ids[rigid], floor[rigid], rest_u[crossing][rigid], w[rigid]
             if len(ids) == 0:
                 continue
+            # turned back by δ, a contact sits at base - w R q + w (R q turned by -δ)
             arm = (before[ids] - eye.pivot) @ turn.T  # R q: the lid's full swing of each vertex
-            base = out[ids]
-
-            start, swing = base - w[:, None] * arm, _turner(arm, axis)
-
-            def place(delta: np.ndarray, start=start, w=w, swing=swing) -> np.ndarray:
-                return start + w[:, None] * swing(-delta)
-
-        else:
-            swing = _turner(out[ids] - pivot, axis)
-
-            def place(delta: np.ndarray, swing=swing) -> np.ndarray:
-                return pivot + swing(-delta)
-
-        def above(delta: np.ndarray, place=place, floor=floor, line=line) -> np.ndarray:
-            return _clearance(frame(place(delta)), line, beyond=not columns) - floor
-
-        hi = _least_opening(above, len(ids))
+            parts = _turn_parts(arm, axis)
+            start, scale = out[ids] - w[:, None] * arm, w
+        else:  # turned back by δ, a contact sits at pivot + (p - pivot turned by -δ)
+            parts = _turn_parts(out[ids] - pivot, axis)
+            start, scale = np.tile(pivot, (len(ids), 1)), np.ones(len(ids))
+        # the smallest δ that puts each contact on the margin (``_least_opening``), compiled
+        reach = line[2] if not columns else 0.0
+        hi = least_opening(
+            start, scale, *parts, origin, axes, *line[:2], reach, floor, LID_MAX_OPENING_RAD, LID_SOLVE_STEPS
+        )
         if columns:
             opening.append((at_u, hi))
         else:
+            along, across, cross = parts
             out = out.copy() if out is skinned else out
-            out[ids] = place(hi)
+            out[ids] = pivot + (along + across * np.cos(-hi)[:, None] + cross * np.sin(-hi)[:, None])
     if columns and opening:
         u = np.concatenate([o[0] for o in opening])
         delta = np.concatenate([o[1] for o in opening])
@@ -247,7 +247,8 @@ def keep_lids_apart(
 
 
 def _least_opening(above: Callable[[np.ndarray], np.ndarray], k: int) -> np.ndarray:
-    """The smallest turns δ (k,) in [0, LID_MAX_OPENING_RAD] rad with ``above(δ) >= 0``, from above.
+    """The smallest turns δ (k,) in [0, LID_MAX_OPENING_RAD] rad with ``above(δ) >= 0``, from above
+    (the reference for ``kernels.least_opening``, which ``keep_lids_apart`` calls).
 
     ``above`` (k,) -> (k,) rises with δ and is < 0 at 0 (+inf where a turned vertex leaves the margin's
     span). Illinois false position (the kept end's value halved when one end moves twice in a row),
@@ -359,11 +360,15 @@ class Chain:
             z = self.skull(p[:, 0], p[:, 1])
             behind = np.isfinite(z) & (p[:, 2] < z - 1e-9 * self.rig.scale)
             v[self.skull_ids[behind], 2] = z[behind]
-        if self.creases.nnz:
-            v += (self.creases.T @ values).reshape(-1, 3)
+        if self.creases.nnz:  # creases.T @ values, over the channels that are not 0
+            c = self.creases
+            v += channel_offsets(c.indptr, c.indices, c.data, values, c.shape[1]).reshape(-1, 3)
         transforms = bone_transforms(self.rig, values)
         before = v
-        v = linear_blend_skinning(v, self.weights, transforms)
+        # linear_blend_skinning, compiled
+        moving = np.array([b for b, m in enumerate(transforms) if not np.array_equal(m, IDENTITY)], np.int64)
+        w = self.weights
+        v = blend_skinning(v, w.indptr, w.indices, w.data, transforms, moving)
         for eye in self.lid_contacts:  # the upper lid's columns stop on the lower margin
             v = keep_lids_apart(eye, v, before, transforms, columns=True)
         for ids, bone, rest_centre, rest_tip, height in self.lids:
