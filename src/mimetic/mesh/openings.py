@@ -471,11 +471,20 @@ def mouth_opening(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) 
 def margin_distance(vertices: np.ndarray, faces: np.ndarray, seeds: np.ndarray, reach: float) -> np.ndarray:
     """Distance (n,) from the ``seeds`` (k,) int64 along the edges of ``faces`` (Dijkstra), inf beyond
     ``reach`` or where no path leads."""
+    return _distance(_edge_graph(vertices, faces), seeds, reach)
+
+
+def _edge_graph(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
+    """The edges of ``faces`` as an (n, n) CSR graph weighted by their lengths (upper triangle)."""
     edges = edges_unique(faces)
     length = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
-    graph = sp.coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(len(vertices),) * 2).tocsr()
+    return sp.coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(len(vertices),) * 2).tocsr()
+
+
+def _distance(graph: sp.csr_matrix, seeds: np.ndarray, reach: float) -> np.ndarray:
+    """``margin_distance`` over a graph from ``_edge_graph``."""
     if not len(seeds):
-        return np.full(len(vertices), np.inf)
+        return np.full(graph.shape[0], np.inf)
     return dijkstra(graph, directed=False, indices=seeds, limit=reach, min_only=True)
 
 
@@ -506,8 +515,9 @@ def opening_sides(
     side = np.zeros(len(vertices), dtype=np.int8)
     if not len(upper) or not len(lower):
         return side
-    to_upper = margin_distance(vertices, faces, upper, reach)
-    to_lower = margin_distance(vertices, faces, lower, reach)
+    graph = _edge_graph(vertices, faces)  # once for both margins
+    to_upper = _distance(graph, upper, reach)
+    to_lower = _distance(graph, lower, reach)
     side[to_upper < to_lower] = 1
     side[to_lower < to_upper] = -1
     return side
