@@ -160,3 +160,52 @@ def channel_offsets(
         for e in range(indptr[c], indptr[c + 1]):
             out[indices[e]] += data[e] * a
     return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def basis_frame(
+    neutral: np.ndarray,
+    a: np.ndarray,
+    pairs: np.ndarray,
+    peaks: np.ndarray,
+    neutral_peak: float,
+    limit: float,
+    term_runs: np.ndarray,
+    runs: np.ndarray,
+    values: np.ndarray,
+) -> np.ndarray:
+    """One frame of a basis (``basis.evaluate_basis``, "Layout"): ``neutral + Σ_j t_j D_j`` over the
+    stored runs of the terms with t_j ≠ 0, in ``neutral``'s dtype; an empty array when the frame is
+    out of range (``basis._check_range``).
+
+    Term j < c has activation a_j; term c + k the product a_(pairs[k, 0]) a_(pairs[k, 1]). Term j's
+    runs are ``runs[term_runs[j] : term_runs[j + 1]]``, each (first element of the flattened output,
+    length, first element of ``values``).
+    """
+    c = len(a)
+    t = np.empty(c + len(pairs))
+    t[:c] = a
+    for k in range(len(pairs)):
+        t[c + k] = a[pairs[k, 0]] * a[pairs[k, 1]]
+    magnitude = neutral_peak
+    for j in range(len(t)):  # N_max + Σ |t_j| M_j, and each |t_j|, below the dtype's limit
+        size = abs(t[j])
+        if not size < limit:
+            return neutral[:0].copy()
+        magnitude += size * peaks[j]
+    if not magnitude < limit:
+        return neutral[:0].copy()
+    out = neutral.copy()
+    cast = np.empty(len(t), neutral.dtype)
+    cast[:] = t  # each term's activation rounded to the output's dtype
+    for j in range(len(t)):
+        if t[j] == 0.0:
+            continue
+        alpha = cast[j]
+        for r in range(term_runs[j], term_runs[j + 1]):
+            start, length, at = runs[r, 0], runs[r, 1], runs[r, 2]
+            y = out[start : start + length]
+            x = values[at : at + length]
+            for e in range(length):  # views indexed from 0: LLVM vectorises the loop
+                y[e] += alpha * x[e]
+    return out
