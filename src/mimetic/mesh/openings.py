@@ -154,9 +154,11 @@ class Opening:
         return (along > inset) & (along < 1 - inset)
 
 
-def skin_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """The faces (f, 3) of the largest connected piece of the mesh by area: the skin."""
-    _, labels = connected_components(faces, len(vertices))
+def skin_faces(vertices: np.ndarray, faces: np.ndarray, *, labels: np.ndarray | None = None) -> np.ndarray:
+    """The faces (f, 3) of the largest connected piece of the mesh by area: the skin. ``labels`` (n,):
+    the pieces (``connected_components(faces, n)[1]``), when the caller has them."""
+    if labels is None:
+        _, labels = connected_components(faces, len(vertices))
     face_label = labels[faces[:, 0]]
     area = np.linalg.norm(face_normals(vertices, faces, unit=False), axis=1)
     return faces[face_label == np.argmax(np.bincount(face_label, weights=area))]
