@@ -366,7 +366,7 @@ class Chain:
         transforms = bone_transforms(self.rig, values)
         before = v
         # linear_blend_skinning, compiled
-        moving = np.array([b for b, m in enumerate(transforms) if not np.array_equal(m, IDENTITY)], np.int64)
+        moving = np.flatnonzero((transforms != IDENTITY).any(axis=(1, 2)))  # bones that are not at rest
         w = self.weights
         v = blend_skinning(v, w.indptr, w.indices, w.data, transforms, moving)
         for eye in self.lid_contacts:  # the upper lid's columns stop on the lower margin
