@@ -200,10 +200,15 @@ def keep_lids_apart(
     for upper, lower, tucked, least, rest_u in eye.layers:
         if tucked and columns:  # a skirt inside the eyeball does not hold the lid open
             continue
-        line = _lower_line(frame(out[lower]), eye.bridge)
-        if len(line[0]) < 2:
+        if len(lower) < 2:
             continue
-        crossing = _clearance(frame(out[upper]), line, beyond=not columns) < least
+        low, high = frame(out[lower]), frame(out[upper])
+        # the margin line never rises above its highest point (bridging takes chords between its points):
+        # contacts that clear that point by their floor cannot cross, so an open eye builds no line
+        if np.all(high[:, 1] - low[:, 1].max() > least + 1e-6 * eye.bridge):
+            continue
+        line = _lower_line(low, eye.bridge)
+        crossing = _clearance(high, line, beyond=not columns) < least
         if not crossing.any():
             continue
         ids = upper[crossing]
