@@ -31,7 +31,13 @@ import scipy.sparse as sp
 from scipy.interpolate import LinearNDInterpolator
 
 from mimetic.engines.attach import ride
-from mimetic.engines.kernels import blend_skinning, bridged_margin, channel_offsets, least_opening
+from mimetic.engines.kernels import (
+    blend_skinning,
+    bridged_margin,
+    channel_offsets,
+    least_opening,
+    triangle_heights,
+)
 from mimetic.engines.muscles import LID_RIGID_WEIGHT
 from mimetic.engines.skinning import IDENTITY, bone_transforms
 from mimetic.head.parts import eyeball_profile
@@ -288,6 +294,27 @@ def _upper_weight(eye: EyeContact, ids: np.ndarray) -> np.ndarray:
     return np.where(hit, eye.follower_weight[at] if found else 0.0, 0.0)
 
 
+def _triangle_grid(tri) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A uniform grid over a 2-D triangulation's points (about one triangle a cell): per cell, the
+    triangles whose bounding box meets it (``kernels.triangle_heights``): (cell_first (G + 1,),
+    cell_triangles, (x0, y0, cell size, columns, rows))."""
+    corners = tri.points[tri.simplices]  # (S, 3, 2)
+    low, high = tri.points.min(axis=0), tri.points.max(axis=0)
+    size = max(float(np.max(high - low)) / max(np.sqrt(len(tri.simplices)), 1.0), 1e-300)
+    nx, ny = (np.floor((high - low) / size).astype(np.int64) + 1).tolist()
+    first = np.floor((corners.min(axis=1) - low) / size).astype(np.int64)  # (S, 2)
+    last = np.floor((corners.max(axis=1) - low) / size).astype(np.int64)
+    cells, owners = [], []
+    for s, ((i0, j0), (i1, j1)) in enumerate(zip(first, last, strict=True)):
+        i, j = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1))
+        cells.append((j * nx + i).ravel())
+        owners.append(np.full(i.size, s))
+    cells, owners = np.concatenate(cells), np.concatenate(owners)
+    order = np.lexsort((owners, cells))  # by cell, then triangle
+    cell_first = np.searchsorted(cells[order], np.arange(nx * ny + 1))
+    return cell_first, owners[order].astype(np.int64), np.array([*low, size, nx, ny], np.float64)
+
+
 class Chain:
     """The stages after the muscles: skull push, creases, skinning, eyelid sculptors, accessories
     riveted to the skin (prepared once)."""
@@ -315,6 +342,7 @@ class Chain:
         if skull and len(anatomy.skull):
             surface = anatomy.skull.surface
             self.skull = LinearNDInterpolator(surface[:, :2], surface[:, 2])
+            self.skull_cells = _triangle_grid(self.skull.tri)
         v = rig.mesh.vertices
         self.lids = []
         for side in ("L", "R"):
@@ -347,6 +375,22 @@ class Chain:
         limit = radius * eyeball_profile(angle) + SCULPTOR_MARGIN_REL * self.rig.scale
         return dist, limit
 
+    def _skull_height(self, points: np.ndarray) -> np.ndarray:
+        """The skull surface's height (k,) under ``points`` (k, 3), NaN outside it: the interpolator's
+        value, found through a grid of its triangles (``kernels.triangle_heights``: its search walked
+        the triangulation point by point, 63 of its 90 us); points no triangle of their cell holds
+        (outside, or on an edge within rounding) go to the interpolator itself."""
+        tri = self.skull.tri
+        first, triangles, grid = self.skull_cells
+        xy = np.ascontiguousarray(points[:, :2])
+        z = triangle_heights(
+            xy, tri.transform, tri.simplices, self.skull.values[:, 0], first, triangles, grid
+        )
+        missed = np.isnan(z)
+        if missed.any():
+            z[missed] = self.skull(xy[missed])
+        return z
+
     def apply(self, deformed: np.ndarray, values: np.ndarray) -> np.ndarray:
         """Lip contact, skull push (+Z onto the rest forehead), creases, skinning, lid contact, lid
         sculptors, then the accessories (eyelashes and the like) placed on the skin they ride.
@@ -362,7 +406,7 @@ class Chain:
             v[self.lip_pairs[crossed, 1], 1] = mid
         if self.skull is not None:
             p = v[self.skull_ids]
-            z = self.skull(p[:, 0], p[:, 1])
+            z = self._skull_height(p)
             behind = np.isfinite(z) & (p[:, 2] < z - 1e-9 * self.rig.scale)
             v[self.skull_ids[behind], 2] = z[behind]
         if self.creases.nnz:  # creases.T @ values, over the channels that are not 0

@@ -209,3 +209,52 @@ def basis_frame(
             for e in range(length):  # views indexed from 0: LLVM vectorises the loop
                 y[e] += alpha * x[e]
     return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def triangle_heights(
+    xy: np.ndarray,
+    transform: np.ndarray,
+    simplices: np.ndarray,
+    heights: np.ndarray,
+    cell_first: np.ndarray,
+    cell_triangles: np.ndarray,
+    grid: np.ndarray,
+) -> np.ndarray:
+    """The heights (k,) of a triangulated height field (a ``LinearNDInterpolator``'s triangulation
+    ``transform`` (S, 3, 2), ``simplices`` (S, 3) and corner ``heights``) under points ``xy`` (k, 2):
+    scipy's barycentric interpolation, term for term, in the first triangle of the point's grid cell
+    that holds it (all three coordinates >= 0). NaN where none does (the caller asks scipy there).
+
+    The grid: ``grid`` = (x0, y0, cell size, columns, rows); cell (i, j) lists the triangles whose
+    bounding box meets it, ``cell_triangles[cell_first[c] : cell_first[c + 1]]`` with c = j columns + i.
+    """
+    k = len(xy)
+    out = np.full(k, np.nan)
+    x0, y0, size, nx, ny = grid[0], grid[1], grid[2], int(grid[3]), int(grid[4])
+    for p in range(k):
+        x, y = xy[p, 0], xy[p, 1]
+        i, j = int(np.floor((x - x0) / size)), int(np.floor((y - y0) / size))
+        if i < 0 or j < 0 or i >= nx or j >= ny:
+            continue
+        cell = j * nx + i
+        for e in range(cell_first[cell], cell_first[cell + 1]):
+            s = cell_triangles[e]
+            dx, dy = x - transform[s, 2, 0], y - transform[s, 2, 1]
+            c0 = 0.0
+            c0 += transform[s, 0, 0] * dx
+            c0 += transform[s, 0, 1] * dy
+            c1 = 0.0
+            c1 += transform[s, 1, 0] * dx
+            c1 += transform[s, 1, 1] * dy
+            c2 = 1.0
+            c2 -= c0
+            c2 -= c1
+            if c0 >= 0.0 and c1 >= 0.0 and c2 >= 0.0:
+                z = 0.0
+                z += c0 * heights[simplices[s, 0]]
+                z += c1 * heights[simplices[s, 1]]
+                z += c2 * heights[simplices[s, 2]]
+                out[p] = z
+                break
+    return out
