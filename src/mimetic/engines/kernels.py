@@ -258,3 +258,12 @@ def triangle_heights(
                 out[p] = z
                 break
     return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def row_lengths(d: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(d, axis=1)`` for (n, 3) ``d``, with numpy's sum order: √((x² + y²) + z²)."""
+    out = np.empty(len(d))
+    for i in range(len(d)):
+        out[i] = np.sqrt((d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1]) + d[i, 2] * d[i, 2])
+    return out
