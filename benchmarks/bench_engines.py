@@ -3,8 +3,9 @@
     python benchmarks/bench_engines.py [--quick]
 
 One table: case | median time | throughput | baseline | ratio. Rows: the nonlinear wire and
-vector engines (goal >= 200 frames/s); ``evaluate_basis``, the evaluation every consumer of a
-baked basis calls, for one realistic frame (goal >= 3,000 frames/s) and batches of 512 frames
+vector engines with the lids in contact (goal >= 1,000 frames/s, issue 31); ``evaluate_basis``, the
+evaluation every consumer of a baked basis calls, for one realistic frame (goal >= 50,000 frames/s)
+and batches of 512 frames
 (goal >= 20,000 frames/s), in float32 (what ``mimetic.view`` renders from; the goals) and float64
 (what exports, the ARKit fit and the bake's error report use); and its baselines, measured in the
 same run and timed round-robin with it (``bench_basis.round_robin``): dense float64 and float32
@@ -28,7 +29,7 @@ from mimetic.head.model import make_head
 from mimetic.rig.activations import pose
 from mimetic.rig.recipe import build_rig
 
-GOAL_ENGINE_FPS = 200
+GOAL_ENGINE_FPS = 1_000  # issue 31: the wire engine ran 1,023 frames/s before the lid contact landed
 BATCH_FRAMES = 512
 REALISTIC = {  # a talking, smiling face: 14 channels
     "zygomatic_major_L": 0.6,
@@ -97,7 +98,7 @@ def main() -> None:
     per_frame = {case: s / f for (case, f), s in {**engine_seconds, **basis_seconds}.items()}
     goal = 1 / GOAL_ENGINE_FPS
     rows = [
-        (case, t, f"goal {GOAL_ENGINE_FPS} frames/s", goal)
+        (case, t, f"goal {GOAL_ENGINE_FPS:,} frames/s", goal)
         for case, t in per_frame.items()
         if "engine" in case
     ]
@@ -135,7 +136,7 @@ def main() -> None:
         f"goals: basis one frame >= {GOAL_SINGLE_FPS:,} frames/s: {single:,.0f} "
         f"({verdict(single >= GOAL_SINGLE_FPS)}); "
         f"batched >= {GOAL_BATCH_FPS:,}: {batch:,.0f} ({verdict(batch >= GOAL_BATCH_FPS)}); "
-        f"engines >= {GOAL_ENGINE_FPS}: {wire:,.0f} (wire), {vector:,.0f} (vector) "
+        f"engines >= {GOAL_ENGINE_FPS:,}: {wire:,.0f} (wire), {vector:,.0f} (vector) "
         f"({verdict(min(wire, vector) >= GOAL_ENGINE_FPS)})"
     )
 

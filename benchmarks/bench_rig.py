@@ -7,7 +7,8 @@ they are skipped with a note):
 
 a. ``rig_head`` end to end on the ICT neutral head (26,719 vertices, cm) with the file's iBUG
    landmarks (49: no jaw contour, the inner mouth corners 61/65 duplicate 49/55), median of 3 runs
-   (1 with ``--quick``), against the goal of 20 s; the same with all 68 (66 names: the 17 outline
+   (1 with ``--quick``), against the goal of 1.6 s (issue 31; ≤ 1 s with ``auto_landmarks`` included
+   as the goal); the same with all 68 (66 names: the 17 outline
    points slide, ``fit.conform``), 1 run, with the conformation's landmark RMS (the gate's measure)
    and the largest difference of its skin weights from the 49-point rig on the face (mean over the
    face vertices, % per bone); and ``auto_landmarks`` + ``rig_head`` when MediaPipe is installed.
@@ -76,7 +77,8 @@ from mimetic.mesh.closest import closest_points
 from mimetic.mesh.model import Mesh
 from mimetic.testing import ibug_outline, ict_landmarks, load_ict, shared_data_dir
 
-GOAL_RIG_S = 20.0
+GOAL_RIG_S = 1.6  # issue 31: rig_head on ICT with its landmark file
+GOAL_AUTO_S = 1.0  # issue 31, the goal with automatic landmarks (detection included)
 GOAL_SPEEDUP = 5.0
 GOAL_MEDIAN_RESIDUAL = 0.35
 ICT_FACE = slice(0, 9409)  # ICT's "Face" part, vertices 0..9408 (inclusive range in meta.json)
@@ -184,7 +186,7 @@ def bench_rig_head(mesh: Mesh, landmarks: Landmarks, landmarks68: Landmarks, rep
             seconds(t),
             f"{mesh.n_vertices / t:,.0f} vertices/s",
             residual,
-            f"goal {GOAL_RIG_S:.0f} s",
+            f"goal {GOAL_RIG_S:g} s",
             f"{t / GOAL_RIG_S:.3f}",
         )
     )
@@ -201,7 +203,7 @@ def bench_rig_head(mesh: Mesh, landmarks: Landmarks, landmarks68: Landmarks, rep
                 seconds(t68),
                 f"{mesh.n_vertices / t68:,.0f} vertices/s",
                 f"{f.mean_pct:.3f} / {f.p95_pct:.3f} / {f.max_pct:.3f}",
-                f"goal {GOAL_RIG_S:.0f} s",
+                f"goal {GOAL_RIG_S:g} s",
                 f"{t68 / GOAL_RIG_S:.3f}",
             )
         )
@@ -222,8 +224,8 @@ def bench_rig_head(mesh: Mesh, landmarks: Landmarks, landmarks68: Landmarks, rep
                 seconds(t_auto),
                 f"{mesh.n_vertices / t_auto:,.0f} vertices/s",
                 f"{a.mean_pct:.3f} / {a.p95_pct:.3f} / {a.max_pct:.3f}",
-                f"goal {GOAL_RIG_S:.0f} s",
-                f"{t_auto / GOAL_RIG_S:.3f}",
+                f"goal {GOAL_AUTO_S:g} s",
+                f"{t_auto / GOAL_AUTO_S:.3f}",
             )
         )
     except Exception as error:  # MediaPipe missing, or no GL context: say so and go on
@@ -235,7 +237,7 @@ def bench_rig_head(mesh: Mesh, landmarks: Landmarks, landmarks68: Landmarks, rep
         ("case", "median time", "throughput", "residual mean / p95 / max %", "baseline", "ratio"),
         rows,
     )
-    goal = f"Goal ≤ {GOAL_RIG_S:.0f} s end to end: {seconds(t)} — {verdict(t <= GOAL_RIG_S)}"
+    goal = f"Goal ≤ {GOAL_RIG_S:g} s end to end: {seconds(t)} — {verdict(t <= GOAL_RIG_S)}"
     print(f"   {goal}")
     report.save("rig", [table, goal + "."])
     return result

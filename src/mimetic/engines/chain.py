@@ -25,15 +25,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import LinearNDInterpolator
 
 from mimetic.engines.attach import ride
+from mimetic.engines.kernels import (
+    blend_skinning,
+    bridged_margin,
+    channel_offsets,
+    least_opening,
+    triangle_heights,
+)
 from mimetic.engines.muscles import LID_RIGID_WEIGHT
-from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
+from mimetic.engines.skinning import IDENTITY, bone_transforms
 from mimetic.head.parts import eyeball_profile
 from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, LID_THICKNESS_REL, eye_frame
 from mimetic.rig.model import Rig
@@ -68,13 +74,20 @@ class EyeContact:
     bridge: float  # rig units along u: the widest dip of the lower margin the upper lid bridges
 
 
-def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """``angle (k,) -> d turned by angle``: vectors ``d`` (k, 3) turned about the unit ``axis`` (3,) by
-    Rodrigues' formula, its angle-free parts computed once (a contact's search turns them often)."""
+def _turn_parts(d: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The angle-free parts (along, across, cross), each (k, 3), of Rodrigues' formula for vectors ``d``
+    (k, 3) turned about the unit ``axis`` (3,): d turned by θ is along + across cos θ + cross sin θ."""
     along = np.outer(d @ axis, axis)
     across = d - along
     x, y, z = axis
     cross = np.column_stack([y * d[:, 2] - z * d[:, 1], z * d[:, 0] - x * d[:, 2], x * d[:, 1] - y * d[:, 0]])
+    return along, across, cross
+
+
+def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``angle (k,) -> d turned by angle``: vectors ``d`` (k, 3) turned about the unit ``axis`` (3,) by
+    Rodrigues' formula, its angle-free parts computed once (``_turn_parts``)."""
+    along, across, cross = _turn_parts(d, axis)
     return lambda angle: along + across * np.cos(angle)[:, None] + cross * np.sin(angle)[:, None]
 
 
@@ -86,21 +99,19 @@ def _lower_line(points: np.ndarray, span: float) -> tuple[np.ndarray, np.ndarray
     point. ``step`` is the median spacing along u (0 for fewer than two points)."""
     order = np.argsort(points[:, 0], kind="stable")
     u, v = points[order, 0], points[order, 1]
-    step = float(np.median(np.diff(u))) if len(u) > 1 else 0.0
+    step = _median(np.diff(u)) if len(u) > 1 else 0.0
     if len(u) < 3:
         return u, v, step
-    width = u[None, :] - u[:, None]  # (a, b): the chord from point a to point b spans u_b - u_a
-    slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
-    chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]  # (a, b, i)
-    usable = _between(len(u)) & (width <= span)[:, :, None]  # a < i < b, chord no wider than span
-    return u, np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1))), step
+    # v_i = max(v_i, v_a + (u_i - u_a) (v_b - v_a) / (u_b - u_a)) over a < i < b with u_b - u_a <= span
+    return u, bridged_margin(u, v, span), step
 
 
-@lru_cache(maxsize=8)
-def _between(j: int) -> np.ndarray:
-    """(j, j, j) bool: ``[a, b, i]`` is whether a < i < b."""
-    k = np.arange(j)
-    return (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])
+def _median(x: np.ndarray) -> float:
+    """``float(np.median(x))`` for a non-empty (k,) array without NaN, without np.median's overhead
+    (80 µs a call, a quarter of the lid contact's time)."""
+    x = np.sort(x)
+    middle = len(x) // 2
+    return float(x[middle] if len(x) % 2 else (x[middle - 1] + x[middle]) / 2)
 
 
 def _clearance(
@@ -195,10 +206,15 @@ def keep_lids_apart(
     for upper, lower, tucked, least, rest_u in eye.layers:
         if tucked and columns:  # a skirt inside the eyeball does not hold the lid open
             continue
-        line = _lower_line(frame(out[lower]), eye.bridge)
-        if len(line[0]) < 2:
+        if len(lower) < 2:
             continue
-        crossing = _clearance(frame(out[upper]), line, beyond=not columns) < least
+        low, high = frame(out[lower]), frame(out[upper])
+        # the margin line never rises above its highest point (bridging takes chords between its points):
+        # contacts that clear that point by their floor cannot cross, so an open eye builds no line
+        if np.all(high[:, 1] - low[:, 1].max() > least + 1e-6 * eye.bridge):
+            continue
+        line = _lower_line(low, eye.bridge)
+        crossing = _clearance(high, line, beyond=not columns) < least
         if not crossing.any():
             continue
         ids = upper[crossing]
@@ -209,29 +225,24 @@ def keep_lids_apart(
             ids, floor, at_u, w = ids[rigid], floor[rigid], rest_u[crossing][rigid], w[rigid]
             if len(ids) == 0:
                 continue
+            # turned back by δ, a contact sits at base - w R q + w (R q turned by -δ)
             arm = (before[ids] - eye.pivot) @ turn.T  # R q: the lid's full swing of each vertex
-            base = out[ids]
-
-            start, swing = base - w[:, None] * arm, _turner(arm, axis)
-
-            def place(delta: np.ndarray, start=start, w=w, swing=swing) -> np.ndarray:
-                return start + w[:, None] * swing(-delta)
-
-        else:
-            swing = _turner(out[ids] - pivot, axis)
-
-            def place(delta: np.ndarray, swing=swing) -> np.ndarray:
-                return pivot + swing(-delta)
-
-        def above(delta: np.ndarray, place=place, floor=floor, line=line) -> np.ndarray:
-            return _clearance(frame(place(delta)), line, beyond=not columns) - floor
-
-        hi = _least_opening(above, len(ids))
+            parts = _turn_parts(arm, axis)
+            start, scale = out[ids] - w[:, None] * arm, w
+        else:  # turned back by δ, a contact sits at pivot + (p - pivot turned by -δ)
+            parts = _turn_parts(out[ids] - pivot, axis)
+            start, scale = np.tile(pivot, (len(ids), 1)), np.ones(len(ids))
+        # the smallest δ that puts each contact on the margin (``_least_opening``), compiled
+        reach = line[2] if not columns else 0.0
+        hi = least_opening(
+            start, scale, *parts, origin, axes, *line[:2], reach, floor, LID_MAX_OPENING_RAD, LID_SOLVE_STEPS
+        )
         if columns:
             opening.append((at_u, hi))
         else:
+            along, across, cross = parts
             out = out.copy() if out is skinned else out
-            out[ids] = place(hi)
+            out[ids] = pivot + (along + across * np.cos(-hi)[:, None] + cross * np.sin(-hi)[:, None])
     if columns and opening:
         u = np.concatenate([o[0] for o in opening])
         delta = np.concatenate([o[1] for o in opening])
@@ -247,7 +258,8 @@ def keep_lids_apart(
 
 
 def _least_opening(above: Callable[[np.ndarray], np.ndarray], k: int) -> np.ndarray:
-    """The smallest turns δ (k,) in [0, LID_MAX_OPENING_RAD] rad with ``above(δ) >= 0``, from above.
+    """The smallest turns δ (k,) in [0, LID_MAX_OPENING_RAD] rad with ``above(δ) >= 0``, from above
+    (the reference for ``kernels.least_opening``, which ``keep_lids_apart`` calls).
 
     ``above`` (k,) -> (k,) rises with δ and is < 0 at 0 (+inf where a turned vertex leaves the margin's
     span). Illinois false position (the kept end's value halved when one end moves twice in a row),
@@ -282,6 +294,27 @@ def _upper_weight(eye: EyeContact, ids: np.ndarray) -> np.ndarray:
     return np.where(hit, eye.follower_weight[at] if found else 0.0, 0.0)
 
 
+def _triangle_grid(tri) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A uniform grid over a 2-D triangulation's points (about one triangle a cell): per cell, the
+    triangles whose bounding box meets it (``kernels.triangle_heights``): (cell_first (G + 1,),
+    cell_triangles, (x0, y0, cell size, columns, rows))."""
+    corners = tri.points[tri.simplices]  # (S, 3, 2)
+    low, high = tri.points.min(axis=0), tri.points.max(axis=0)
+    size = max(float(np.max(high - low)) / max(np.sqrt(len(tri.simplices)), 1.0), 1e-300)
+    nx, ny = (np.floor((high - low) / size).astype(np.int64) + 1).tolist()
+    first = np.floor((corners.min(axis=1) - low) / size).astype(np.int64)  # (S, 2)
+    last = np.floor((corners.max(axis=1) - low) / size).astype(np.int64)
+    cells, owners = [], []
+    for s, ((i0, j0), (i1, j1)) in enumerate(zip(first, last, strict=True)):
+        i, j = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1))
+        cells.append((j * nx + i).ravel())
+        owners.append(np.full(i.size, s))
+    cells, owners = np.concatenate(cells), np.concatenate(owners)
+    order = np.lexsort((owners, cells))  # by cell, then triangle
+    cell_first = np.searchsorted(cells[order], np.arange(nx * ny + 1))
+    return cell_first, owners[order].astype(np.int64), np.array([*low, size, nx, ny], np.float64)
+
+
 class Chain:
     """The stages after the muscles: skull push, creases, skinning, eyelid sculptors, accessories
     riveted to the skin (prepared once)."""
@@ -309,6 +342,7 @@ class Chain:
         if skull and len(anatomy.skull):
             surface = anatomy.skull.surface
             self.skull = LinearNDInterpolator(surface[:, :2], surface[:, 2])
+            self.skull_cells = _triangle_grid(self.skull.tri)
         v = rig.mesh.vertices
         self.lids = []
         for side in ("L", "R"):
@@ -341,6 +375,22 @@ class Chain:
         limit = radius * eyeball_profile(angle) + SCULPTOR_MARGIN_REL * self.rig.scale
         return dist, limit
 
+    def _skull_height(self, points: np.ndarray) -> np.ndarray:
+        """The skull surface's height (k,) under ``points`` (k, 3), NaN outside it: the interpolator's
+        value, found through a grid of its triangles (``kernels.triangle_heights``: its search walked
+        the triangulation point by point, 63 of its 90 us); points no triangle of their cell holds
+        (outside, or on an edge within rounding) go to the interpolator itself."""
+        tri = self.skull.tri
+        first, triangles, grid = self.skull_cells
+        xy = np.ascontiguousarray(points[:, :2])
+        z = triangle_heights(
+            xy, tri.transform, tri.simplices, self.skull.values[:, 0], first, triangles, grid
+        )
+        missed = np.isnan(z)
+        if missed.any():
+            z[missed] = self.skull(xy[missed])
+        return z
+
     def apply(self, deformed: np.ndarray, values: np.ndarray) -> np.ndarray:
         """Lip contact, skull push (+Z onto the rest forehead), creases, skinning, lid contact, lid
         sculptors, then the accessories (eyelashes and the like) placed on the skin they ride.
@@ -356,14 +406,18 @@ class Chain:
             v[self.lip_pairs[crossed, 1], 1] = mid
         if self.skull is not None:
             p = v[self.skull_ids]
-            z = self.skull(p[:, 0], p[:, 1])
+            z = self._skull_height(p)
             behind = np.isfinite(z) & (p[:, 2] < z - 1e-9 * self.rig.scale)
             v[self.skull_ids[behind], 2] = z[behind]
-        if self.creases.nnz:
-            v += (self.creases.T @ values).reshape(-1, 3)
+        if self.creases.nnz:  # creases.T @ values, over the channels that are not 0
+            c = self.creases
+            v += channel_offsets(c.indptr, c.indices, c.data, values, c.shape[1]).reshape(-1, 3)
         transforms = bone_transforms(self.rig, values)
         before = v
-        v = linear_blend_skinning(v, self.weights, transforms)
+        # linear_blend_skinning, compiled
+        moving = np.flatnonzero((transforms != IDENTITY).any(axis=(1, 2)))  # bones that are not at rest
+        w = self.weights
+        v = blend_skinning(v, w.indptr, w.indices, w.data, transforms, moving)
         for eye in self.lid_contacts:  # the upper lid's columns stop on the lower margin
             v = keep_lids_apart(eye, v, before, transforms, columns=True)
         for ids, bone, rest_centre, rest_tip, height in self.lids:

@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from mimetic.rig.model import Rig
 
 IDENTITY = np.eye(4)
+IDENTITY.setflags(write=False)
 LID_FOLLOWS_GAZE = (0.5, 0.2)  # upper, lower lid rotation per radian of gaze pitch
 LID_FOLLOWS_YAW = 0.5  # lid rotation about the vertical per radian of the eye's yaw (they ride the cornea)
 # muscles that move the lids through the lid bones: (upper, lower) closing rotation per unit
@@ -68,10 +69,10 @@ def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
     Channels a rig lacks count as 0. ``transforms[k] @ [x, 1]`` moves a rest point bound to
     bone ``rig.bone_names[k]``.
     """
-    index = {n: i for i, n in enumerate(rig.channel_names)}
+    named = dict(zip(rig.channel_names, np.asarray(values, dtype=np.float64).tolist(), strict=False))
 
     def ch(name: str) -> float:
-        return float(values[index[name]]) if name in index else 0.0
+        return named.get(name, 0.0)
 
     local = {}
     head = rig.bone("head").head
@@ -86,7 +87,7 @@ def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
         centre = rig.bone(f"eye_{side}").head
         upper = ch(f"eyelid_upper_{side}") - LID_FOLLOWS_GAZE[0] * pitch
         lower = ch(f"eyelid_lower_{side}") + LID_FOLLOWS_GAZE[1] * pitch
-        closing = rig.channel(f"eyelid_upper_{side}").maximum if f"eyelid_upper_{side}" in index else 0.6
+        closing = rig.channel(f"eyelid_upper_{side}").maximum if f"eyelid_upper_{side}" in named else 0.6
         for muscle, (up, low) in LID_MUSCLES.items():
             upper += up * closing * ch(f"{muscle}_{side}")
             lower += low * closing * ch(f"{muscle}_{side}")
@@ -101,8 +102,8 @@ def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
         local[f"eye_{side}"] = about(rotation_y(yaw) @ rotation_x(-pitch), centre)
     out = np.empty((len(rig.bones), 4, 4))
     for k, bone in enumerate(rig.bones):
-        m = local.get(bone.name, np.eye(4))
-        out[k] = m if bone.parent is None else local.get(bone.parent, np.eye(4)) @ m
+        m = local.get(bone.name, IDENTITY)
+        out[k] = m if bone.parent is None else local.get(bone.parent, IDENTITY) @ m
     return out
 
 

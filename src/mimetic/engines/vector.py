@@ -51,6 +51,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from mimetic.engines.chain import Chain
+from mimetic.engines.kernels import channel_offsets, row_lengths
 from mimetic.engines.muscles import deformable_vertices, muscle_frame, muscle_mask
 from mimetic.mesh.geometry import smooth_field
 from mimetic.mesh.weld import find_weld
@@ -239,6 +240,7 @@ class VectorEngine:
         self.rig = rig
         self.channels = rig.channel_names
         self._deltas = vector_deltas(rig)
+        self._columns = self._deltas.tocsc()  # (3n, c): each channel's entries together
         self._limit = SATURATION_REL * rig.scale
         self.chain = Chain(rig, skull=skull)
 
@@ -247,8 +249,13 @@ class VectorEngine:
         values = check_activations(self.rig, values)
         if values.ndim != 1:
             raise ValueError("deform takes one pose (c,); loop over frames or bake a Basis for clips")
-        d = (self._deltas @ values).reshape(-1, 3)  # (n, 3), summed on the rest skin
-        length = np.linalg.norm(d, axis=1, keepdims=True)
-        safe = np.where(length > 0, length, 1.0)
-        d *= np.where(length > 0, self._limit * np.tanh(length / self._limit) / safe, 0.0)
+        # deltas @ values over the channels that are not 0 (the same sums in the same order), compiled
+        c = self._columns
+        d = channel_offsets(c.indptr, c.indices, c.data, values, c.shape[0]).reshape(-1, 3)  # (n, 3)
+        length = row_lengths(d)  # (n,) as np.linalg.norm gives it
+        moved = np.flatnonzero(length > 0)
+        scale = length[moved]
+        d[moved] *= (self._limit * np.tanh(scale / self._limit) / scale)[
+            :, None
+        ]  # soft limit, |d| -> L tanh(|d|/L)
         return self.chain.apply(self.rig.mesh.vertices + d, values)

@@ -198,8 +198,8 @@ class WireEngine:
     Prepared data: ``weights`` (K, c) constraint weight of each channel's locator on each of the
     K control points of all wires, ``rest`` (K,) rest-locator weights, ``motion`` (K, c, 3)
     locator motion at full contraction, ``joint`` (n,) how much each lip vertex takes of the other
-    lip's wires (``lip_joint``), and ``spread`` (3n, 3K) sparse, the wire deformers'
-    dropoff-weighted interpolation from CV motion to vertex motion.
+    lip's wires (``lip_joint``), and ``spread`` (n, K) sparse CSR, the wire deformers'
+    dropoff-weighted interpolation from CV motion (K, 3) to vertex motion (n, 3).
     """
 
     name = "wire"
@@ -231,8 +231,7 @@ class WireEngine:
         rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
         total = np.bincount(rows, weights=vals, minlength=rig.n_vertices)  # summed dropoff per vertex
         vals = vals / np.maximum(total[rows], 1.0) * muscle_mask(rig)[rows]  # overlapping wires blend
-        spread = sp.csr_matrix((vals, (rows, cols)), shape=(rig.n_vertices, k_total))
-        self.spread = sp.kron(spread, sp.identity(3), format="csr")  # (3n, 3K)
+        self.spread = sp.csr_matrix((vals, (rows, cols)), shape=(rig.n_vertices, k_total))  # (n, K)
         self.chain = Chain(rig, skull=skull)
 
     def cv_motion(self, values: np.ndarray) -> np.ndarray:
@@ -241,7 +240,7 @@ class WireEngine:
 
     def muscle_offsets(self, values: np.ndarray) -> np.ndarray:
         """Skin displacement (n, 3) from the muscles alone, for a pose (c,)."""
-        return (self.spread @ self.cv_motion(values).ravel()).reshape(-1, 3)
+        return self.spread @ self.cv_motion(values)  # (n, K) @ (K, 3)
 
     def deform(self, values: np.ndarray) -> np.ndarray:
         """Vertex positions (n, 3) for one pose ``values`` (c,) in the rig's channel order."""

@@ -14,8 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from mimetic.head.params import HeadParams
-from mimetic.head.shape import SUBNASALE_Y0, skin_geometry
+from mimetic.head.shape import SUBNASALE_Y0, default_skin_geometry
 from mimetic.head.topology import EYE_CENTRE, HeadTopology
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
@@ -127,7 +126,7 @@ def _nearest_angle(t_ring: np.ndarray, t: float) -> int:
 
 def skin_landmarks(topo: HeadTopology, mesh: Mesh, pieces: Mapping[str, Mesh]) -> dict[str, int]:
     """Landmark name -> vertex index in the head mesh (skin first, parts after)."""
-    geo = skin_geometry(topo, HeadParams())
+    geo = default_skin_geometry(topo)
     v, chart = geo.vertices, geo.chart
     normals = vertex_normals(v, topo.faces)
     meridian = np.nonzero(topo.mirror == np.arange(topo.n_vertices))[0]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from mimetic.head.params import HeadParams
-from mimetic.head.shape import Layout, skin_geometry
+from mimetic.head.shape import Layout, default_skin_geometry
 from mimetic.head.topology import EYE_CENTRE, HeadTopology
 
 REGION_NAMES = (
@@ -41,7 +41,7 @@ def skin_regions(topo: HeadTopology) -> dict[str, np.ndarray]:
     """Region name -> sorted skin vertex indices (k,) int64."""
     params = HeadParams()
     L = Layout.of(params)
-    geo = skin_geometry(topo, params)
+    geo = default_skin_geometry(topo)
     v, (X, Y) = geo.vertices, geo.chart.T
     n = topo.n_vertices
     u, t = topo.ring_uv[:, 0], topo.ring_uv[:, 1]

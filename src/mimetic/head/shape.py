@@ -27,6 +27,7 @@ Units are centimetres; the eye line is at y = 0 and the face looks down +Z.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -309,6 +310,16 @@ class SkinGeometry:
     eye_centre_L: np.ndarray  # (3,) eyeball centre; the right one is its mirror
     eye_radius: float
     mouth_anchor: np.ndarray  # (3,) point on the contact line at the midline
+
+
+@lru_cache(maxsize=8)
+def default_skin_geometry(topo: HeadTopology) -> SkinGeometry:
+    """``skin_geometry(topo, HeadParams())``, computed once per topology (landmarks and regions are
+    defined on it: every ``make_head`` asked for it twice, 0.1 s a rig); its arrays are read-only."""
+    geo = skin_geometry(topo, HeadParams())
+    for array in (geo.vertices, geo.chart, geo.eye_centre_L, geo.mouth_anchor):
+        array.setflags(write=False)
+    return geo
 
 
 def skin_geometry(topo: HeadTopology, params: HeadParams) -> SkinGeometry:

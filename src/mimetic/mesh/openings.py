@@ -6,7 +6,8 @@ whatever the landmarks or a fitted template say. The mesh is in a frame with +Y 
 area (eyeballs, lashes, teeth and films are separate pieces, or are ignored with them).
 
 * ``front_depth`` sees the skin along −Z on a regular grid: the depth (z) of the first hit per
-  grid point (trimesh's ray queries), NaN where the ray misses.
+  grid point (trimesh's ray-triangle test, on the grid points in each triangle's bounding box),
+  NaN where the ray misses.
 * **Eyes** (``eye_opening``): a lid's margin is a silhouette seen from the front: past it the ray
   goes on into the eye socket or through a hole, so the depth jumps. The grid is split into pieces
   wherever neighbouring depths differ by more than ``JUMP_REL`` of the eye width; the skin around
@@ -153,9 +154,11 @@ class Opening:
         return (along > inset) & (along < 1 - inset)
 
 
-def skin_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """The faces (f, 3) of the largest connected piece of the mesh by area: the skin."""
-    _, labels = connected_components(faces, len(vertices))
+def skin_faces(vertices: np.ndarray, faces: np.ndarray, *, labels: np.ndarray | None = None) -> np.ndarray:
+    """The faces (f, 3) of the largest connected piece of the mesh by area: the skin. ``labels`` (n,):
+    the pieces (``connected_components(faces, n)[1]``), when the caller has them."""
+    if labels is None:
+        _, labels = connected_components(faces, len(vertices))
     face_label = labels[faces[:, 0]]
     area = np.linalg.norm(face_normals(vertices, faces, unit=False), axis=1)
     return faces[face_label == np.argmax(np.bincount(face_label, weights=area))]
@@ -197,12 +200,41 @@ def front_depth(
         return DepthMap(x, y, z)
     used, local = np.unique(faces[inside], return_inverse=True)
     mesh = trimesh.Trimesh(vertices[used], local.reshape(-1, 3), process=False)
-    gx, gy = np.meshgrid(x, y)
-    origins = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, mesh.vertices[:, 2].max() + step)])
-    directions = np.tile([0.0, 0.0, -1.0], (len(origins), 1))
-    hits, ray, _ = mesh.ray.intersects_location(origins, directions, multiple_hits=False)
+    top = mesh.vertices[:, 2].max() + step  # the rays start above everything and go down
+    # 1. candidates: the grid points in each triangle's bounding box, widened by a millionth of a step
+    #    (trimesh's broad phase is the same test with an r-tree, and its hits lie within 1e-12 of a
+    #    triangle's barycentric range, so no hit is lost)
+    triangles = mesh.triangles  # (m, 3, 3)
+    first = np.ceil((triangles[:, :, :2].min(axis=1) - [x[0], y[0]]) / step - 1e-6).astype(np.int64)  # (m, 2)
+    last = np.floor((triangles[:, :, :2].max(axis=1) - [x[0], y[0]]) / step + 1e-6).astype(np.int64)
+    first = np.maximum(first, 0)
+    last = np.minimum(last, [len(x) - 1, len(y) - 1])
+    size = np.maximum(last - first + 1, 0)  # (m, 2) columns and rows in each box
+    count = size[:, 0] * size[:, 1]
+    tri = np.repeat(np.arange(len(triangles)), count)  # (c,) candidate pairs
+    offset = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
+    column = first[tri, 0] + offset % size[tri, 0]
+    row = first[tri, 1] + offset // size[tri, 0]
+    # 2. the narrow phase trimesh's ray query runs (``ray_triangle_id``), on those pairs: the plane hit,
+    #    then its barycentric coordinates, so every hit and its depth are exactly trimesh's
+    origins = np.column_stack([x[column], y[row], np.full(len(tri), top)])
+    location, valid = trimesh.intersections.planes_lines(
+        plane_origins=triangles[tri, 0],
+        plane_normals=mesh.face_normals[tri],
+        line_origins=origins,
+        line_directions=np.tile([0.0, 0.0, -1.0], (len(tri), 1)),
+    )
+    barycentric = trimesh.triangles.points_to_barycentric(triangles[tri[valid]], location)
+    tolerance = trimesh.tol.zero
+    hit = ((barycentric > -tolerance) & (barycentric < 1 + tolerance)).all(axis=1)
+    ray = (row * len(x) + column)[valid][hit]
+    depth = location[hit, 2]
+    # 3. the first hit along each ray: the smallest distance from its origin, as trimesh picks it
+    order = np.lexsort((top - depth, ray))
+    ray, depth = ray[order], depth[order]
+    firsts = np.r_[True, ray[1:] != ray[:-1]]
     flat = z.ravel()
-    flat[ray] = hits[:, 2]
+    flat[ray[firsts]] = depth[firsts]
     return DepthMap(x, y, flat.reshape(z.shape))
 
 
@@ -441,11 +473,20 @@ def mouth_opening(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) 
 def margin_distance(vertices: np.ndarray, faces: np.ndarray, seeds: np.ndarray, reach: float) -> np.ndarray:
     """Distance (n,) from the ``seeds`` (k,) int64 along the edges of ``faces`` (Dijkstra), inf beyond
     ``reach`` or where no path leads."""
+    return _distance(_edge_graph(vertices, faces), seeds, reach)
+
+
+def _edge_graph(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
+    """The edges of ``faces`` as an (n, n) CSR graph weighted by their lengths (upper triangle)."""
     edges = edges_unique(faces)
     length = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
-    graph = sp.coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(len(vertices),) * 2).tocsr()
+    return sp.coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(len(vertices),) * 2).tocsr()
+
+
+def _distance(graph: sp.csr_matrix, seeds: np.ndarray, reach: float) -> np.ndarray:
+    """``margin_distance`` over a graph from ``_edge_graph``."""
     if not len(seeds):
-        return np.full(len(vertices), np.inf)
+        return np.full(graph.shape[0], np.inf)
     return dijkstra(graph, directed=False, indices=seeds, limit=reach, min_only=True)
 
 
@@ -476,8 +517,9 @@ def opening_sides(
     side = np.zeros(len(vertices), dtype=np.int8)
     if not len(upper) or not len(lower):
         return side
-    to_upper = margin_distance(vertices, faces, upper, reach)
-    to_lower = margin_distance(vertices, faces, lower, reach)
+    graph = _edge_graph(vertices, faces)  # once for both margins
+    to_upper = _distance(graph, upper, reach)
+    to_lower = _distance(graph, lower, reach)
     side[to_upper < to_lower] = 1
     side[to_lower < to_upper] = -1
     return side

@@ -60,10 +60,11 @@ def check_shape(
     except (TypeError, ValueError) as error:
         raise ActivationError(f"activations cannot be read as float64 numbers: {error}") from None
     c = len(names)
-    wanted = {1: f"({c},)", 2: f"(frames, {c})", None: f"({c},) or (frames, {c})"}[ndim]
     if a.ndim not in ((1, 2) if ndim is None else (ndim,)):
+        wanted = {1: f"({c},)", 2: f"(frames, {c})", None: f"({c},) or (frames, {c})"}[ndim]
         raise ActivationError(f"activations must have shape {wanted}; got {a.shape}")
     if a.shape[-1] != c:
+        wanted = {1: f"({c},)", 2: f"(frames, {c})", None: f"({c},) or (frames, {c})"}[ndim]
         attribute = "channels" if owner == "basis" else "channel_names"
         raise ActivationError(
             f"activations must have shape {wanted}: got {a.shape[-1]} channels; this {owner} has {c} "

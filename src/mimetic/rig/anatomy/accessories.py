@@ -117,17 +117,22 @@ def find_accessories(mesh: Mesh, scale: float, weights: sp.spmatrix) -> Accessor
     if not candidates or len(main_faces) == 0:
         return none
     v = mesh.vertices
+    members = [np.flatnonzero(label == c) for c in candidates]
+    # one query for every candidate's vertices (each query's answer is its own: one search tree over
+    # the skin instead of one per candidate, 36 trees of 50k triangles per ICT rig before)
+    near = closest_points(v, main_faces, v[np.concatenate(members)])
+    ends = np.cumsum([len(ids) for ids in members])
     pieces = []
-    for c in candidates:
-        ids = np.flatnonzero(label == c)
-        near = closest_points(v, main_faces, v[ids])
-        gap = near.distance.min()
+    for ids, end in zip(members, ends, strict=True):
+        at = slice(end - len(ids), end)
+        distance, hit_faces, hit_bary = near.distance[at], near.faces[at], near.bary[at]
+        gap = distance.min()
         if gap > ACCESSORY_GAP_REL * scale:
             continue  # floats free of the skin: not attached
-        roots = np.flatnonzero(near.distance <= gap + ROOT_BAND_REL * scale)
+        roots = np.flatnonzero(distance <= gap + ROOT_BAND_REL * scale)
         _, nearest = cKDTree(v[ids[roots]]).query(v[ids])
         root = roots[nearest]  # (k,) the root each vertex follows
-        pieces.append((ids, near.faces[root], near.bary[root]))
+        pieces.append((ids, hit_faces[root], hit_bary[root]))
     if not pieces:
         return none
     ids, hit_faces, bary = (np.concatenate(x) for x in zip(*pieces, strict=True))

@@ -275,12 +275,17 @@ def _overlap(margin: np.ndarray, other: np.ndarray, uvw: np.ndarray) -> np.ndarr
 
 
 def _seen_margins(
-    vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray, centre: np.ndarray, radius: float
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    corners: np.ndarray,
+    centre: np.ndarray,
+    radius: float,
+    labels: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The rim vertices along the upper and lower edges of the eye's opening seen from the front
     (``mimetic.mesh.openings``: the lids' silhouettes, whatever the regions say), or None when no
-    opening is found (eyes closed by faces)."""
-    skin = skin_faces(vertices, faces)
+    opening is found (eyes closed by faces). ``labels`` (n,): the mesh's connected pieces."""
+    skin = skin_faces(vertices, faces, labels=labels)
     opening = eye_opening(vertices, skin, corners, (centre, radius))
     if opening is None:
         return None
@@ -340,7 +345,7 @@ def lid_rims(
     mixed = is_tucked[edges[:, 0]] != is_tucked[edges[:, 1]]
     next_to_tucked[edges[mixed].ravel()] = True
     rim = gaze_rim(vertices, faces, axes[2])
-    seen = _seen_margins(vertices, faces, corners, centre, radius)
+    seen = _seen_margins(vertices, faces, corners, centre, radius, labels)
     upper, lower, margin = [], [], []
     for tucked in (False, True):
         layer = lids[is_tucked[lids] == tucked]

@@ -1,0 +1,91 @@
+"""The compiled chain kernels against the numpy code they replace (``mimetic.engines.kernels``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from mimetic.engines import kernels
+from mimetic.engines.chain import (
+    LID_MAX_OPENING_RAD,
+    LID_SOLVE_STEPS,
+    _clearance,
+    _least_opening,
+    _median,
+    _turn_parts,
+)
+from mimetic.engines.skinning import linear_blend_skinning
+
+
+def numpy_bridged_margin(u: np.ndarray, v: np.ndarray, span: float) -> np.ndarray:
+    """The (j, j, j) formula ``chain._lower_line`` used before the kernel."""
+    j = len(u)
+    k = np.arange(j)
+    between = (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])
+    width = u[None, :] - u[:, None]
+    slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
+    chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]
+    usable = between & (width <= span)[:, :, None]
+    return np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1)))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_bridged_margin_gives_the_bits_of_the_numpy_formula(seed):
+    rng = np.random.default_rng(seed)
+    u = np.sort(rng.uniform(-1, 1, 20))
+    v = rng.normal(0, 0.1, 20)
+    u_before, v_before = u.copy(), v.copy()
+    got = kernels.bridged_margin(u, v, 0.4)
+    assert got.shape == (20,) and got.dtype == np.float64
+    np.testing.assert_array_equal(got, numpy_bridged_margin(u, v, 0.4))
+    np.testing.assert_array_equal(u, u_before)
+    np.testing.assert_array_equal(v, v_before)
+
+
+def test_median_is_numpys():
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 7, 16):
+        x = rng.normal(size=n)
+        assert _median(x) == float(np.median(x))
+
+
+def test_least_opening_matches_the_numpy_search():
+    rng = np.random.default_rng(4)
+    k = 12
+    axis = np.array([1.0, 0.0, 0.0])
+    along, across, cross = _turn_parts(rng.normal(0, 0.3, (k, 3)) + np.array([0, 0, 1.0]), axis)
+    start, scale = rng.normal(0, 0.05, (k, 3)) + np.array([0, 1.0, 0]), rng.uniform(0.5, 1, k)
+    origin, axes = np.zeros(3), np.eye(3)
+    line_u = np.sort(rng.uniform(-2, 2, 15))
+    line = (line_u, rng.normal(0.8, 0.02, 15), float(np.median(np.diff(line_u))))
+    floor = rng.uniform(-0.01, 0.01, k)
+
+    def above(delta: np.ndarray) -> np.ndarray:
+        turned = along + across * np.cos(-delta)[:, None] + cross * np.sin(-delta)[:, None]
+        return _clearance(start + scale[:, None] * turned, line, beyond=True) - floor
+
+    expected = _least_opening(above, k)
+    got = kernels.least_opening(
+        start, scale, along, across, cross, origin, axes, line[0], line[1], line[2], floor,
+        LID_MAX_OPENING_RAD, LID_SOLVE_STEPS,
+    )  # fmt: skip
+    assert got.shape == (k,)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)
+
+
+def test_blend_skinning_and_channel_offsets_match_scipy():
+    rng = np.random.default_rng(5)
+    n, b, c = 50, 4, 6
+    vertices = rng.normal(size=(n, 3))
+    weights = sp.random(n, b, density=0.5, random_state=1, format="csc")
+    transforms = np.tile(np.eye(4), (b, 1, 1))
+    transforms[1:, :3, :] += rng.normal(0, 0.1, (b - 1, 3, 4))
+    got = kernels.blend_skinning(
+        vertices, weights.indptr, weights.indices, weights.data, transforms, np.arange(1, b)
+    )
+    np.testing.assert_allclose(got, linear_blend_skinning(vertices, weights, transforms), rtol=0, atol=1e-14)
+    creases = sp.random(c, 3 * n, density=0.3, random_state=2, format="csr")
+    values = np.array([0.0, 0.5, 0.0, 1.0, 0.25, 0.0])
+    offsets = kernels.channel_offsets(creases.indptr, creases.indices, creases.data, values, 3 * n)
+    np.testing.assert_array_equal(offsets, creases.T @ values)
