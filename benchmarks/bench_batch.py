@@ -1,6 +1,8 @@
-"""Benchmark batch rigging on a local Dask cluster: scaling, per-item overhead, 10,000 heads on paper.
+"""Benchmark batch rigging and 1,000 small jobs on a local Dask cluster: scaling, overhead per job.
 
-    python benchmarks/bench_batch.py [--quick] [--heads N] [--resolution N]
+    python benchmarks/bench_batch.py [--quick] [--part all|rig|jobs] [--heads N] [--resolution N] [--jobs N]
+
+Rigging (``--part rig``):
 
 Generated heads (seeds 0 … N-1, GLB, with their landmark files; 40 heads, 10 with --quick) at the
 default resolution (10,000 skin vertices) are rigged by ``mimetic.batch.rig_many`` on a fresh
@@ -17,11 +19,22 @@ throughput | baseline | ratio:
 * Dask's scheduling cost per task (1,000 no-op tasks on the 2-worker cluster).
 
 A second table estimates 10,000 heads on N machines from these numbers (see ``estimate``).
+
+Small jobs (``--part jobs``): 1,000 ``animate`` items (100 with --quick), each playing a one-second
+clip of its own (rest → a blend of joy and surprise → rest, 30 frames) on the small rig (2,500 skin
+vertices) and writing a GLB, about 0.15 s of work each, given as a manifest file and run by
+``mimetic.batch.animate_many`` on a fresh LocalCluster of 1 and of 2 workers. Cluster start is timed
+to the batch's first ``progress(0, n)`` call (the cluster is up, nothing submitted yet); the rest of
+the wall time is the items'. One table: the two runs (scaling efficiency at 2 workers = speed-up / 2,
+goal ≥ 85 %), cluster start, the job's own time on a worker, and the batch's overhead per job: the
+items' wall time × workers minus the sum of the jobs' own times, per job (submitting, Dask's hand-offs,
+the completion record, the manifest row, idle workers at the end).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import os
 import shutil
 import statistics
@@ -33,15 +46,20 @@ from pathlib import Path
 
 import report
 from bench_rig import print_table
-from mimetic.batch import rig_many
+from mimetic.animate.clipfiles import save_clip
+from mimetic.animate.keyframes import from_expressions
+from mimetic.batch import animate_many, rig_many
 from mimetic.fit.landmarks import write_landmarks
 from mimetic.head.model import DEFAULT_RESOLUTION
 from mimetic.mesh.io import save_mesh
-from mimetic.testing import head_landmarks, small_head
+from mimetic.rig.format import save_rig
+from mimetic.testing import head_landmarks, small_head, small_rig
 
 SCALING_GOAL = 1.7
 CLI_HEADS = 5
 PAPER_HEADS = 10_000
+EFFICIENCY_GOAL = 0.85
+"""Scaling efficiency of the small jobs at 2 workers: (1-worker time / 2-worker time) / 2."""
 
 
 def write_heads(folder: Path, n: int, resolution: int) -> list[Path]:
@@ -118,18 +136,122 @@ def estimate(per_core_s: float, mb_per_head: float, per_task_s: float) -> list[t
     return rows
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="10 heads (for CI)")
-    parser.add_argument("--heads", type=int, help="how many heads (default 40, --quick 10)")
-    parser.add_argument("--resolution", type=int, default=DEFAULT_RESOLUTION, help="skin vertices per head")
-    args = parser.parse_args()
-    n = args.heads or (10 if args.quick else 40)
-    begin = time.perf_counter()
-    print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} cores; {n} heads")
+def write_jobs(folder: Path, n: int) -> Path:
+    """The small rig, ``n`` one-second clips and a manifest ``jobs.csv`` of ``n`` animate items (clip k
+    on the rig → ``clip_K.glb``); returns the manifest's path. Clip k goes rest → joy·w + surprise·(1-w)
+    at 0.5 s → rest at 1 s, with w = k / n, so every item poses different frames."""
+    folder.mkdir(parents=True, exist_ok=True)
+    rig = small_rig()
+    save_rig(rig, folder / "small.mrig")
+    manifest = folder / "jobs.csv"
+    with manifest.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(("input", "output", "clip"))
+        for k in range(n):
+            w = k / n
+            clip = from_expressions(rig, [(0.0, "rest"), (0.5, {"joy": w, "surprise": 1 - w}), (1.0, "rest")])
+            save_clip(clip, folder / f"clip_{k:04d}.json")
+            writer.writerow(("small.mrig", f"clip_{k:04d}.glb", f"clip_{k:04d}.json"))
+    return manifest
+
+
+def run_jobs(manifest: Path, out: Path, workers: int) -> tuple[float, float, object]:
+    """``animate_many`` of the manifest's items on a fresh LocalCluster of ``workers`` processes: wall
+    time, cluster start (until the batch's first progress call) and the manifest of results."""
+    start = time.perf_counter()
+    ready = []
+
+    def progress(done: int, total: int) -> None:
+        if not ready:
+            ready.append(time.perf_counter() - start)
+
+    result = animate_many([], out, manifest=manifest, workers=workers, resume=False, progress=progress)
+    wall = time.perf_counter() - start
+    if result.failed:
+        raise SystemExit(f"{len(result.failed)} jobs failed: {result.failed[0].error}")
+    missing = [p for r in result.rows for p in r.outputs if not p.is_file()]
+    if missing or not result.rows:
+        raise SystemExit(f"the batch lost outputs: {missing[:3]}")
+    return wall, ready[0], result
+
+
+def jobs_table(n: int) -> str:
+    """Run ``n`` small animate jobs on 1 and on 2 workers; print and return the table (Markdown)."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        paths = write_heads(folder / "heads", n, args.resolution)
+        manifest = write_jobs(folder / "inputs", n)
+        runs = {}
+        for workers in (1, 2):
+            runs[workers] = run_jobs(manifest, folder / "out", workers)
+            shutil.rmtree(folder / "out")  # ~0.9 MB per GLB: not two runs' worth on disk at once
+    one, two = runs[1][0], runs[2][0]
+    speedup = one / two
+    efficiency = speedup / 2
+
+    def overhead(wall: float, start: float, manifest, workers: int) -> float:
+        """Seconds per job the batch adds to the jobs' own time (all workers' time, per job)."""
+        return ((wall - start) * workers - sum(r.seconds for r in manifest.rows)) / n
+
+    rows = [(f"animate_many, {n:,} jobs, 1 worker", f"{one:.1f} s", f"{n / one:.1f} jobs/s", "—", "1")]
+    rows.append(
+        (
+            f"animate_many, {n:,} jobs, 2 workers",
+            f"{two:.1f} s",
+            f"{n / two:.1f} jobs/s",
+            f"1 worker ({one:.1f} s)",
+            f"{speedup:.2f}× = {efficiency:.0%} efficiency (goal ≥ {EFFICIENCY_GOAL:.0%})",
+        )
+    )
+    for workers, (wall, start, result) in runs.items():
+        job_s = statistics.median(r.seconds for r in result.rows)
+        per_job = overhead(wall, start, result, workers)
+        label = f"{workers} worker{'s' * (workers > 1)}"
+        rows.append(
+            (
+                f"cluster start, {label}",
+                f"{start:.2f} s",
+                "—",
+                f"the run ({wall:.1f} s)",
+                f"{start / wall:.3f}",
+            )
+        )
+        rows.append(
+            (
+                f"job on a worker (median), {label}",
+                f"{job_s * 1000:.0f} ms",
+                f"{1 / job_s:.1f} jobs/s",
+                "—",
+                "1",
+            )
+        )
+        rows.append(
+            (
+                f"batch overhead per job, {label}",
+                f"{per_job * 1000:.1f} ms",
+                "—",
+                f"job on a worker ({job_s * 1000:.0f} ms)",
+                f"{per_job / job_s:.3f}",
+            )
+        )
+    table = print_table(
+        f"batch animate: {n:,} one-second clips (30 fps) on the small rig (2,500 skin vertices), a GLB each",
+        ("case", "time", "throughput", "baseline", "ratio"),
+        rows,
+    )
+    goal = (
+        f"Scaling efficiency goal ≥ {EFFICIENCY_GOAL:.0%} at 2 workers: {efficiency:.0%} — "
+        f"{'met' if efficiency >= EFFICIENCY_GOAL else 'NOT met'}"
+    )
+    print(f"   {goal}")
+    return table + f"\n\n{goal}."
+
+
+def rig_tables(n: int, resolution: int) -> None:
+    """Rig ``n`` heads of ``resolution`` skin vertices (see the module docstring); print and save the
+    rigging table and the 10,000 heads on paper."""
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        paths = write_heads(folder / "heads", n, resolution)
         mesh_mb = (
             statistics.mean(p.stat().st_size + p.with_suffix(".json").stat().st_size for p in paths) / 1e6
         )
@@ -182,7 +304,7 @@ def main() -> None:
         ),
     ]
     measured = print_table(
-        f"batch rig: {n} generated heads of {args.resolution:,} skin vertices; rig, fit report, picture each",
+        f"batch rig: {n} generated heads of {resolution:,} skin vertices; rig, fit report, picture each",
         ("case", "time", "throughput", "baseline", "ratio"),
         rows,
     )
@@ -201,6 +323,24 @@ def main() -> None:
         estimate(per_core_s, mesh_mb + out_mb, per_task),
     )
     report.save("batch-paper", [paper])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="10 heads and 100 jobs (for CI)")
+    parser.add_argument("--part", choices=("all", "rig", "jobs"), default="all", help="which tables to make")
+    parser.add_argument("--heads", type=int, help="how many heads (default 40, --quick 10)")
+    parser.add_argument("--resolution", type=int, default=DEFAULT_RESOLUTION, help="skin vertices per head")
+    parser.add_argument("--jobs", type=int, help="how many small jobs (default 1,000, --quick 100)")
+    args = parser.parse_args()
+    heads = args.heads or (10 if args.quick else 40)
+    jobs = args.jobs or (100 if args.quick else 1_000)
+    begin = time.perf_counter()
+    print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} cores")
+    if args.part in ("all", "rig"):
+        rig_tables(heads, args.resolution)
+    if args.part in ("all", "jobs"):
+        report.save("batch-jobs", [jobs_table(jobs)])
     print(f"\nbenchmark wall time {time.perf_counter() - begin:.0f} s")
 
 
