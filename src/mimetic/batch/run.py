@@ -363,8 +363,8 @@ def check_scheduler(address: str) -> None:
                 f"cannot reach the Dask scheduler at {address}: nothing listens on port {port} of {host} "
                 "(connection refused); start `dask scheduler` there, or give the port it prints"
             ) from None
-        except OSError:  # unreachable, filtered, timed out: the handshake below says it in Dask's words
-            pass
+        except OSError as error:  # no route, or no answer in time (the host is down, or a firewall)
+            raise _unreachable(address, error) from None
 
     async def handshake() -> None:
         # connect's own timeout covers the connection (refused or dropped: OSError), not the handshake
