@@ -301,7 +301,7 @@ def _runner(client: Any, workers: int | None, n_items: int) -> Iterator[_DaskRun
         except (OSError, TimeoutError) as error:
             raise _unreachable(address, error) from None
         with remote:
-            yield _DaskRunner(remote, f"dask {os.fspath(client)}")
+            yield _DaskRunner(remote, f"dask {address}")
     elif isinstance(client, Executor):
         n = getattr(client, "_max_workers", None) or usable_cores()
         yield _PoolRunner(client, n, f"{type(client).__name__}, {n} workers")
@@ -332,6 +332,7 @@ def check_scheduler(address: str) -> None:
     import socket
     from concurrent.futures import ThreadPoolExecutor
 
+    from distributed import Security
     from distributed.comm import connect, parse_address, parse_host_port
     from distributed.comm.registry import get_backend
 
@@ -366,9 +367,12 @@ def check_scheduler(address: str) -> None:
         except OSError as error:  # no route, or no answer in time (the host is down, or a firewall)
             raise _unreachable(address, error) from None
 
+    security = Security().get_connection_args("client")  # TLS settings from Dask's config, as a Client's
+
     async def handshake() -> None:
         # connect's own timeout covers the connection (refused or dropped: OSError), not the handshake
-        comm = await asyncio.wait_for(connect(address, timeout=SCHEDULER_TIMEOUT_S), SCHEDULER_TIMEOUT_S + 1)
+        connecting = connect(address, timeout=SCHEDULER_TIMEOUT_S, **security)
+        comm = await asyncio.wait_for(connecting, SCHEDULER_TIMEOUT_S + 1)
         await comm.close()
 
     try:
