@@ -29,7 +29,9 @@ the wall time is the items'. One table: the two runs (scaling efficiency at 2 wo
 goal ≥ 85 %) with the same for the items alone, cluster start and close, the job's own time on a
 worker, the batch's overhead per job (the items' wall time × workers minus the sum of the jobs' own
 times, per job: submitting, Dask's hand-offs, the manifest row, idle workers at the end) and the
-fraction of the workers' time spent in jobs. Other processes on the cores slow the jobs themselves
+fraction of the workers' time spent in jobs; then the same items on a scheduler and 2 worker
+processes of their own on 127.0.0.1 (``mimetic.testing.cluster``, as on several machines), against
+the 2-worker LocalCluster. Other processes on the cores slow the jobs themselves
 (the job's time with 2 workers against 1 shows it) and so the scaling, not the overhead.
 """
 
@@ -57,6 +59,7 @@ from mimetic.head.model import DEFAULT_RESOLUTION
 from mimetic.mesh.io import save_mesh
 from mimetic.rig.format import save_rig
 from mimetic.testing import head_landmarks, small_head, small_rig
+from mimetic.testing.cluster import loopback_cluster
 
 SCALING_GOAL = 1.7
 CLI_HEADS = 5
@@ -186,14 +189,16 @@ class JobsRun:
         return (self.items * self.workers - sum(r.seconds for r in rows)) / len(rows)
 
 
-def run_jobs(manifest: Path, out: Path, workers: int) -> JobsRun:
-    """``animate_many`` of the manifest's items on a fresh LocalCluster of ``workers`` processes."""
+def run_jobs(manifest: Path, out: Path, workers: int, scheduler: str | None = None) -> JobsRun:
+    """``animate_many`` of the manifest's items on a fresh LocalCluster of ``workers`` processes, or on
+    the cluster of ``scheduler`` (an address; it has ``workers`` workers)."""
     load = os.getloadavg()[0]
+    where = {"client": scheduler} if scheduler else {"workers": workers}
     calls = []
     start = time.perf_counter()
     result = animate_many(
-        [], out, manifest=manifest, workers=workers, resume=False,
-        progress=lambda done, total: calls.append(time.perf_counter() - start),
+        [], out, manifest=manifest, resume=False,
+        progress=lambda done, total: calls.append(time.perf_counter() - start), **where,
     )  # fmt: skip
     wall = time.perf_counter() - start
     if result.failed:
@@ -213,6 +218,8 @@ def jobs_table(n: int) -> str:
         for workers in (1, 2):
             runs.append(run_jobs(manifest, folder / "out", workers))
             shutil.rmtree(folder / "out")  # ~0.9 MB per GLB: not two runs' worth on disk at once
+        with loopback_cluster(Path(tempfile.mkdtemp(dir=folder))) as cluster:
+            apart = run_jobs(manifest, folder / "out", 2, cluster.address)
     one, two = runs
     speedup = one.wall / two.wall
     rows = []
@@ -236,6 +243,17 @@ def jobs_table(n: int) -> str:
             (f"workers busy with jobs, {label}", f"{run.busy():.1%}", "—", "the items' time × workers",
              f"{run.busy():.3f}"),
         ]  # fmt: skip
+    rows += [
+        (f"animate_many, {n:,} jobs, scheduler + 2 worker processes on 127.0.0.1", f"{apart.wall:.1f} s",
+         f"{n / apart.wall:.1f} jobs/s", f"LocalCluster, 2 workers ({two.wall:.1f} s)",
+         f"{apart.wall / two.wall:.2f}"),
+        ("the items alone, scheduler + 2 worker processes", f"{apart.items:.1f} s",
+         f"{n / apart.items:.1f} jobs/s", f"LocalCluster, 2 workers ({two.items:.1f} s)",
+         f"{apart.items / two.items:.2f}"),
+        ("batch overhead per job, scheduler + 2 worker processes", f"{apart.overhead() * 1000:.1f} ms", "—",
+         f"LocalCluster, 2 workers ({two.overhead() * 1000:.1f} ms)",
+         f"{apart.overhead() / two.overhead():.2f}"),
+    ]  # fmt: skip
     table = print_table(
         f"batch animate: {n:,} one-second clips (30 fps) on the small rig (2,500 skin vertices), a GLB each",
         ("case", "time", "throughput", "baseline", "ratio"),
