@@ -1,5 +1,5 @@
 """A batch on a cluster of separate processes, as on several machines: ``dask scheduler`` and two
-``dask worker`` processes on 127.0.0.1 (``conftest.loopback_cluster``), and ``mimetic batch render
+``dask worker`` processes on 127.0.0.1 (``mimetic.testing.cluster``), and ``mimetic batch render
 --scheduler tcp://127.0.0.1:PORT`` pointed at it; a worker killed in the middle of a batch.
 
 The items render a small generated head (1,500 skin vertices) at 64 pixels: about 0.05 s each, so
