@@ -14,6 +14,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from mimetic.batch import BatchError, rig_many, run_batch
+from mimetic.batch import BatchError, rig_many, run, run_batch
 from mimetic.errors import MimeticError, MissingExtraError
 from mimetic.fit.landmarks import write_landmarks
 from mimetic.mesh.io import save_mesh
@@ -252,6 +253,52 @@ def test_an_unreachable_scheduler_fails_within_10_s_and_leaves_nothing(heads, tm
     (line,) = result.output.strip().splitlines()
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:" in line
     assert not out.exists()  # no empty output folder left behind
+
+
+@pytest.fixture
+def listeners():
+    """Two ports on 127.0.0.1 that are not a Dask scheduler's: one that accepts connections and never
+    says anything (a stuck process, another service waiting for its client), one that answers as an
+    HTTP server does (the dashboard's port): ``(silent port, http port)``."""
+    silent, http = socket.socket(), socket.socket()
+    for server in (silent, http):
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+
+    def answer() -> None:
+        while True:
+            try:
+                connection, _ = http.accept()
+            except OSError:  # closed at the end of the test
+                return
+            with connection:
+                connection.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+
+    threading.Thread(target=answer, daemon=True).start()
+    with silent, http:
+        yield silent.getsockname()[1], http.getsockname()[1]
+
+
+def test_check_scheduler_says_what_is_wrong_with_each_address(listeners, monkeypatch):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(run, "SCHEDULER_TIMEOUT_S", 1)
+    silent, http = listeners
+    cases = {
+        "127.0.0.1": "is not a Dask scheduler address (missing port number",
+        "http://127.0.0.1:8786": "is not a Dask scheduler address (unknown address scheme 'http'",
+        "tcp://127.0.0.1:99999": "is not a Dask scheduler address (port 99999 is not in 1 … 65535)",
+        f"tcp://127.0.0.1:{_free_port()}": "nothing listens on port",
+        f"tcp://127.0.0.1:{silent}": "is open but nothing answered within 2 s",
+        f"tcp://127.0.0.1:{http}": "answered, but not as a Dask scheduler",
+    }
+    for address, message in cases.items():
+        start = time.monotonic()
+        with pytest.raises(BatchError) as raised:
+            run.check_scheduler(address)
+        assert time.monotonic() - start < 5, address
+        (line,) = str(raised.value).splitlines()
+        assert message in line, line
+        assert "8786" in line or "start `dask scheduler` there" in line, line  # and how to fix it
 
 
 def test_ctrl_c_in_a_batch_is_one_line_and_exit_code_130(tmp_path):

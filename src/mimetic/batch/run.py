@@ -294,16 +294,14 @@ def _runner(client: Any, workers: int | None, n_items: int) -> Iterator[_DaskRun
                 f"running on the Dask scheduler {os.fspath(client)} needs the extra [batch] (dask): "
                 f"{install_hint('batch')}"
             )
+        address = os.fspath(client)
+        check_scheduler(address)
         try:
-            remote = distributed.Client(os.fspath(client), timeout=f"{SCHEDULER_TIMEOUT_S}s")
+            remote = distributed.Client(address, timeout=f"{SCHEDULER_TIMEOUT_S}s")
         except (OSError, TimeoutError) as error:
-            reason = " ".join(str(error).split()) or f"no answer within {SCHEDULER_TIMEOUT_S} s"
-            raise BatchError(
-                f"cannot reach the Dask scheduler at {os.fspath(client)} ({reason}); is `dask scheduler` "
-                "running there, and its port open to this machine?"
-            ) from None
+            raise _unreachable(address, error) from None
         with remote:
-            yield _DaskRunner(remote, f"dask {os.fspath(client)}")
+            yield _DaskRunner(remote, f"dask {address}")
     elif isinstance(client, Executor):
         n = getattr(client, "_max_workers", None) or usable_cores()
         yield _PoolRunner(client, n, f"{type(client).__name__}, {n} workers")
@@ -315,6 +313,96 @@ def _runner(client: Any, workers: int | None, n_items: int) -> Iterator[_DaskRun
             "client must be None, a scheduler address, a distributed.Client or a concurrent.futures "
             f"Executor; got {type(client).__name__}"
         )
+
+
+def check_scheduler(address: str) -> None:
+    """Check that a Dask scheduler answers at ``address`` ("tcp://HOST:PORT"), within
+    about ``SCHEDULER_TIMEOUT_S``: the address is well formed, its host name resolves, its port is
+    open and what listens there speaks Dask (a handshake, then the connection is closed).
+
+    ``distributed.Client`` alone waits for ever on a port that is open but silent (its handshake read
+    has no time limit), and reports an HTTP server (such as the dashboard's port 8787) as a memory error.
+
+    Raises
+    ------
+    BatchError
+        One line: what is wrong with the address and how to fix it.
+    """
+    import asyncio
+    import socket
+    from concurrent.futures import ThreadPoolExecutor
+
+    from distributed import Security
+    from distributed.comm import connect, parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+
+    scheme = ""
+    try:
+        scheme, location = parse_address(address)
+        get_backend(scheme)
+        if scheme in HOST_PORT_SCHEMES:
+            host, port = parse_host_port(location)
+            if not 0 < port < 65536:
+                raise ValueError(f"port {port} is not in 1 … 65535")
+    except ValueError as error:
+        raise BatchError(
+            f"{address!r} is not a Dask scheduler address ({' '.join(str(error).split())}); give "
+            "tcp://HOST:PORT as `dask scheduler` prints it (its port is 8786 unless --port says otherwise)"
+        ) from None
+    if scheme in HOST_PORT_SCHEMES:
+        try:
+            socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+        except socket.gaierror as error:
+            raise BatchError(
+                f"cannot reach the Dask scheduler at {address}: the host {host!r} is unknown "
+                f"({error.strerror}); check its name, or give its IP address"
+            ) from None
+        try:  # Dask retries a refused connection until its timeout: say so at once
+            socket.create_connection((host, port), timeout=SCHEDULER_TIMEOUT_S).close()
+        except ConnectionRefusedError:
+            raise BatchError(
+                f"cannot reach the Dask scheduler at {address}: nothing listens on port {port} of {host} "
+                "(connection refused); start `dask scheduler` there, or give the port it prints"
+            ) from None
+        except OSError as error:  # no route, or no answer in time (the host is down, or a firewall)
+            raise _unreachable(address, error) from None
+
+    security = Security().get_connection_args("client")  # TLS settings from Dask's config, as a Client's
+
+    async def handshake() -> None:
+        # connect's own timeout covers the connection (refused or dropped: OSError), not the handshake
+        connecting = connect(address, timeout=SCHEDULER_TIMEOUT_S, **security)
+        comm = await asyncio.wait_for(connecting, SCHEDULER_TIMEOUT_S + 1)
+        await comm.close()
+
+    try:
+        with ThreadPoolExecutor(1) as thread:  # an event loop of its own: the caller may run one (Jupyter)
+            thread.submit(asyncio.run, handshake()).result()
+    except TimeoutError:  # connected, then nothing came back
+        raise BatchError(
+            f"the port of {address} is open but nothing answered within {SCHEDULER_TIMEOUT_S + 1} s; is it "
+            "the scheduler's port (8786 by default; 8787 is its dashboard), and is the scheduler not stuck?"
+        ) from None
+    except OSError as error:
+        raise _unreachable(address, error) from None
+    except Exception:  # it answered, but not in Dask's protocol (an HTTP reply reads as a huge frame)
+        raise BatchError(
+            f"{address} answered, but not as a Dask scheduler; is it the scheduler's port (8786 by "
+            "default; 8787 is its dashboard)?"
+        ) from None
+
+
+HOST_PORT_SCHEMES = ("tcp", "tls", "ws", "wss")
+"""Dask's address schemes whose location is HOST:PORT."""
+
+
+def _unreachable(address: str, error: BaseException) -> BatchError:
+    """The error for a scheduler that refused the connection or did not accept it in time."""
+    reason = " ".join(str(error).split()) or f"no answer within {SCHEDULER_TIMEOUT_S} s"
+    return BatchError(
+        f"cannot reach the Dask scheduler at {address} ({reason}); is `dask scheduler` running there, "
+        "and its port open to this machine?"
+    )
 
 
 def _owned_pool(n: int) -> Iterator[_PoolRunner]:

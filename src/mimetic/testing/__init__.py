@@ -17,7 +17,9 @@ and the same instance may be handed to many tests or benchmark cases:
   ``ict_landmarks(mesh, meta)``: the real data beside the repository (``../shared/data``, or
   ``$MIMETIC_SHARED_DATA``), for tests, benchmarks and ``examples/``; ``require_extra(module,
   extra)``: an optional dependency (a test skips without it, except on CI);
-* ``run_cli(*args)``: the ``mimetic`` command in this process.
+* ``run_cli(*args)``: the ``mimetic`` command in this process;
+* ``cluster.loopback_cluster(folder)``: a Dask scheduler and workers as processes of their own on
+  127.0.0.1, as on several machines (needs the ``[batch]`` extra).
 
 This module imports the test-free parts of mimetic only; nothing in the package (the library,
 its CLI or ``mimetic demo``) imports it.
