@@ -400,3 +400,20 @@ def test_make_head_teeth_are_shaded_apart_and_the_mouth_cavity_is_dark(head):
     mouth = luminance[cavity]
     lips = luminance[np.setdiff1d(head.regions["upper_lip"], cavity)]  # the region holds the bag's rim
     assert mouth.max() < 0.1 < lips.min(), "the mouth cavity is not dark beside the lips"
+
+
+def test_make_head_draws_brows_along_the_brow_line_and_nowhere_else(head):
+    """A face tracker follows brows by their hair; a bare head leaves it guessing."""
+    from mimetic.head.model import BROW, BROW_LINE, SKIN
+
+    colors = head.mesh.colors
+    is_brow = np.all(colors == BROW, axis=1)
+    for side in "LR":
+        line = [head.landmarks[f"{name}_{side}"] for name in BROW_LINE]
+        assert is_brow[line].all()
+        above = head.landmarks[f"brow_mid_{side}"]
+        forehead = np.flatnonzero(head.vertices[: head.n_skin, 1] > head.vertices[above, 1] + 1.5)
+        assert not is_brow[forehead].any() and np.all(colors[forehead] == SKIN)
+    assert is_brow.sum() < 0.05 * head.n_skin
+    mirrored = head.mirror[np.flatnonzero(is_brow)]
+    assert is_brow[mirrored].all()  # the same brows on both sides

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import numpy as np
 
 from mimetic.head import parts
 from mimetic.head.params import HeadParams
-from mimetic.head.shape import skin_geometry
+from mimetic.head.shape import default_skin_geometry, skin_geometry
 from mimetic.head.topology import HeadTopology, build_topology
 from mimetic.mesh.model import Mesh
 
@@ -18,6 +19,12 @@ SKIN = np.float32((0.87, 0.68, 0.58))
 LIP = np.float32((0.74, 0.42, 0.40))
 INNER_LIP = np.float32((0.70, 0.36, 0.36))
 CARUNCLE = np.float32((0.85, 0.55, 0.52))
+BROW = np.float32((0.33, 0.23, 0.17))
+BROW_HALF_WIDTH = (0.42, 0.22)
+"""Half the brow's height at its inner and outer end, cm: the hair is drawn along the brow line
+(``brow_inner`` … ``brow_outer``), tapering outward, so a render shows brows a face tracker can follow
+(MediaPipe places its brow points on the hair's edge; on a bare head it guesses them)."""
+BROW_LINE = ("brow_inner", "brow_inner_mid", "brow_mid", "brow_outer_mid", "brow_outer")
 DEFAULT_RESOLUTION = 10_000
 
 
@@ -130,17 +137,41 @@ def make_head(params: HeadParams | None = None, resolution: int = DEFAULT_RESOLU
     mirror.setflags(write=False)
     eye_centres = centres * scale
     eye_centres.setflags(write=False)
+    landmarks = skin_landmarks(topo, mesh, pieces)
+    brows = _with_brows(mesh.colors, default_skin_geometry(topo).vertices, landmarks)  # as every head's
+    mesh = replace(mesh, colors=brows)
     return Head(
         mesh=mesh,
         params=params,
         resolution=resolution,
         n_skin=topo.n_vertices,
         mirror=mirror,
-        landmarks=MappingProxyType(skin_landmarks(topo, mesh, pieces)),
+        landmarks=MappingProxyType(landmarks),
         regions=MappingProxyType(_regions(topo, mesh)),
         eye_centres=eye_centres,
         eye_radius=geo.eye_radius * float(scale.min()),
     )
+
+
+def _with_brows(colors: np.ndarray, skin: np.ndarray, landmarks: Mapping[str, int]) -> np.ndarray:
+    """``colors`` (n, 3) with eyebrows painted on the skin, whose vertices come first: each skin vertex
+    within ``BROW_HALF_WIDTH`` of a side's brow line (the ``BROW_LINE`` landmarks) is ``BROW``: one
+    flat colour, as the lips are (the web viewer draws the skin's few flat colours as pieces; the
+    renderers' colour interpolation softens the edge). ``skin`` (s, 3) cm: the default head's skin, on
+    which the landmarks are defined, so every head of one resolution has the same colours."""
+    out = colors.copy()
+    t = np.linspace(0.0, 1.0, 24)[:, None]
+    for side in "LR":
+        line = skin[[landmarks[f"{name}_{side}"] for name in BROW_LINE]]
+        dense = np.concatenate([a + t * (b - a) for a, b in itertools.pairwise(line)])
+        along = np.linspace(0.0, 1.0, len(dense))
+        reach = np.linalg.norm(line - line.mean(axis=0), axis=1).max() + BROW_HALF_WIDTH[0]
+        near = np.flatnonzero(np.linalg.norm(skin - line.mean(axis=0), axis=1) < reach)
+        gap = np.linalg.norm(skin[near, None] - dense[None], axis=2)  # (k, d)
+        closest = gap.argmin(axis=1)
+        half = BROW_HALF_WIDTH[0] + (BROW_HALF_WIDTH[1] - BROW_HALF_WIDTH[0]) * along[closest]
+        out[near[gap[np.arange(len(near)), closest] < half]] = BROW
+    return out
 
 
 def _regions(topo: HeadTopology, mesh: Mesh) -> dict[str, np.ndarray]:
