@@ -134,9 +134,8 @@ def install_bpy(progress: Progress | None = None) -> Blender:
             f"or set {ENV_VAR} to a blender binary"
         )
     target = venv_dir()
-    if (
-        progress is None
-    ):  # a command without a progress display (mimetic rig head.fbx) still says why it waits
+    # a command without a progress display (mimetic rig head.fbx) still says why it waits
+    if progress is None:
         log.warning("installing Blender's bpy %s for FBX into %s (once: about 1 GB, a minute or two)",
                     BPY_VERSION, target)  # fmt: skip
     target.parent.mkdir(parents=True, exist_ok=True)
