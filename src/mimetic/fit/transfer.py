@@ -293,6 +293,7 @@ def _close_lids(
             closed_rad=closed,
             clearance=LID_CLEARANCE_REL * scale,
             thickness=LID_THICKNESS_REL * scale,
+            rims=rims,
         )
     return out, bones
 

@@ -526,6 +526,7 @@ def closing_weights(
     closed_rad: float,
     clearance: float,
     thickness: float,
+    rims: LidRims | None = None,
 ) -> np.ndarray:
     """Skin weights whose upper-lid column closes eye ``side`` onto its lower margin at ``closed_rad``.
 
@@ -552,6 +553,8 @@ def closing_weights(
     clearance, thickness : float
         The sculptor's clearance outside the eyeball and the most of its rest height over the eyeball
         it keeps for each lid vertex, rig units (``LID_CLEARANCE_REL``, ``LID_THICKNESS_REL``).
+    rims : LidRims, optional
+        ``lid_rims`` of this eye with these arguments, when the caller has them already.
 
     Returns
     -------
@@ -560,7 +563,10 @@ def closing_weights(
     """
     out = np.array(weights, dtype=np.float64, copy=True)
     gaze = np.asarray(gaze, dtype=np.float64) / np.linalg.norm(gaze)
-    rims = lid_rims(vertices, faces, regions, side, corners=corners, centre=centre, radius=radius, gaze=gaze)
+    if rims is None:
+        rims = lid_rims(
+            vertices, faces, regions, side, corners=corners, centre=centre, radius=radius, gaze=gaze
+        )
     if rims is None or len(rims.upper_margin[0]) < MIN_MARGIN or len(rims.lower[0]) < MIN_MARGIN:
         return out
     margin, lower = rims.upper_margin[0], rims.lower[0]
