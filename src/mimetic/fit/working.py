@@ -1,0 +1,315 @@
+"""Rigging a dense scan at a working resolution: a decimated copy is rigged, every vertex carried.
+
+Above ``WORKING_THRESHOLD`` vertices ``rig_head`` does not fit and transfer on the user's own
+vertices (the transfer's closest points, smoothing solves and lid searches grow faster than the
+vertex count: 620 s and 7.4 GiB at 1.68M vertices). It rigs a *working copy* instead:
+
+1. ``working_copy``: each connected piece of the welded mesh (skin, each eyeball, each tooth …)
+   is decimated on its own (``mesh.decimate``) to its share of ``WORKING_VERTICES``; a piece under
+   ``KEEP_WHOLE`` vertices is kept as it is. Every one of the user's vertices is then tied to the
+   closest triangle of *its own piece's* copy (``mesh.decimate.embed``), so an eyelid never takes
+   the eyeball's data however close they lie.
+2. The existing pipeline rigs the copy (landmarks from its renders, fit, transfer).
+3. ``carry_rig``: the rig on the user's vertices, order, units and faces: skin weights are
+   interpolated through each vertex's embedding (then the 4 largest kept and renormalised); region
+   and wire-set memberships are interpolated indicators kept from 0.5 (the transfer's own rule),
+   each lip vertex in one lip only; per-vertex anatomy (crease and tissue-action offsets, the tissue
+   thickness) is interpolated the same way; what refers to vertex indices is found again on the
+   dense vertices: surface points (landmarks, muscle ends, wire control points) at the closest point
+   of the dense skin; the forehead's skull, lip contact pairs, lid margins and the accessories'
+   rivets by the anatomy's own rules (``rig.anatomy``) on the dense mesh. Bones, channels
+   and muscle parameters are the copy's.
+
+A whole connected piece lands on one piece of the copy, so a rigid part (an eyeball, a tooth) takes
+exactly its bone's weight at every vertex.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from mimetic.errors import MeshError
+from mimetic.mesh.closest import closest_points
+from mimetic.mesh.decimate import Embedding, decimate, embed
+from mimetic.mesh.geometry import connected_components
+from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
+from mimetic.rig.anatomy import Anatomy, find_accessories, find_lid_contacts, forehead_skull, lip_contact
+from mimetic.rig.anatomy.derive import skin_vertices
+from mimetic.rig.model import Rig
+
+WORKING_THRESHOLD = 200_000
+"""``rig_head`` rigs a working copy of a mesh with more vertices than this (see docs/rigging.md)."""
+WORKING_VERTICES = 100_000
+"""The working copy's vertex count (about: each piece is decimated to its share)."""
+MIN_WORKING_VERTICES = 5_000
+"""The smallest working copy accepted: below it the reference's mouth and lids have too few vertices."""
+KEEP_WHOLE = 300
+"""A connected piece with fewer vertices than this is kept as it is in the working copy."""
+CHUNK = 200_000
+"""Dense points embedded at a time (the closest-point search holds ~1 kB per point)."""
+MAX_INFLUENCES = 4
+MEMBERSHIP = 0.5
+
+
+@dataclass(frozen=True)
+class WorkingCopy:
+    """A decimated copy of a dense mesh and the dense mesh's vertices tied to it.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The copy: (k, 3) vertices in the dense mesh's frame and units, no parts; vertex colours
+        taken from the nearest dense vertex when the dense mesh has them.
+    embedding : Embedding
+        Each dense vertex (n of them, the user's order) on a triangle of its own piece's copy.
+    """
+
+    mesh: Mesh
+    embedding: Embedding
+
+
+def working_copy(mesh: Mesh, welded: Mesh, index: np.ndarray, target: int) -> WorkingCopy:
+    """A copy of ``welded`` (the user's ``mesh`` with its seams merged; ``index`` (n,) maps each user
+    vertex to its welded vertex) with about ``target`` vertices, and ``mesh``'s vertices tied to it.
+
+    A connected piece of ``welded`` under ``KEEP_WHOLE`` vertices is kept whole; the others are each
+    decimated in proportion to their size, to what is left of ``target``; each user vertex is then
+    embedded in its own piece's copy.
+    """
+    n_pieces, label = connected_components(welded.faces, welded.n_vertices)
+    sizes = np.bincount(label, minlength=n_pieces)
+    whole = sizes < KEEP_WHOLE
+    # the pieces kept whole count toward the target; the others share what is left
+    share = max(target - sizes[whole].sum(), KEEP_WHOLE) / max(sizes[~whole].sum(), 1)
+    face_piece = label[welded.faces[:, 0]]
+    order = np.argsort(face_piece, kind="stable")
+    bounds = np.searchsorted(face_piece[order], np.arange(n_pieces + 1))
+    user_piece = label[index]  # (n,)
+    user_order = np.argsort(user_piece, kind="stable")
+    user_bounds = np.searchsorted(user_piece[user_order], np.arange(n_pieces + 1))
+    vertices, faces = [], []
+    triangles = np.zeros((mesh.n_vertices, 3), dtype=np.int64)
+    bary = np.zeros((mesh.n_vertices, 3))
+    offset = np.zeros((mesh.n_vertices, 3))
+    start = 0
+    loose = []  # user vertices of pieces without faces: tied to the whole copy afterwards
+    for piece in range(n_pieces):
+        users = user_order[user_bounds[piece] : user_bounds[piece + 1]]
+        piece_faces = welded.faces[order[bounds[piece] : bounds[piece + 1]]]
+        if not len(piece_faces):
+            loose.append(users)
+            continue
+        used, local = np.unique(piece_faces, return_inverse=True)
+        v, f = welded.vertices[used], local.reshape(-1, 3)
+        if len(used) >= KEEP_WHOLE:
+            v, f = _decimated(v, f, max(KEEP_WHOLE, round(len(used) * share)))
+        for chunk in np.array_split(users, max(1, -(-len(users) // CHUNK))):
+            tied = embed(mesh.vertices[chunk], v, f)
+            triangles[chunk], bary[chunk], offset[chunk] = tied.triangles + start, tied.bary, tied.offset
+        vertices.append(v)
+        faces.append(f + start)
+        start += len(v)
+    copy_v, copy_f = np.concatenate(vertices), np.concatenate(faces)
+    if loose:
+        users = np.concatenate(loose)
+        tied = embed(mesh.vertices[users], copy_v, copy_f)
+        triangles[users], bary[users], offset[users] = tied.triangles, tied.bary, tied.offset
+    colors = None
+    if mesh.colors is not None:
+        _, nearest = cKDTree(mesh.vertices).query(copy_v)
+        colors = mesh.colors[nearest]
+    copy = Mesh(copy_v, copy_f, colors=colors, units=mesh.units)
+    return WorkingCopy(copy, Embedding(triangles, bary, offset, len(copy_v)))
+
+
+def _decimated(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
+    """``decimate`` with the vertices no face uses dropped, and degenerate faces removed."""
+    v, f = decimate(vertices, faces, target)
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+    used, local = np.unique(f, return_inverse=True)
+    return np.ascontiguousarray(v[used]), local.reshape(-1, 3).astype(np.int64)
+
+
+def working_vertices_for(n_vertices: int, working_vertices: int | str | None) -> int | None:
+    """The working copy's vertex count for a mesh of ``n_vertices``, or None to rig it directly.
+
+    ``working_vertices``: None (automatic: ``WORKING_VERTICES`` above ``WORKING_THRESHOLD``
+    vertices, else direct), ``"full"`` (always direct) or a count ≥ ``MIN_WORKING_VERTICES`` (a
+    count at or over the mesh's own is direct too).
+    """
+    if working_vertices is None:
+        return WORKING_VERTICES if n_vertices > WORKING_THRESHOLD else None
+    if working_vertices == "full":
+        return None
+    if isinstance(working_vertices, bool) or not isinstance(working_vertices, (int, np.integer)):
+        raise MeshError(
+            f"working resolution {working_vertices!r} is neither a vertex count nor 'full'; "
+            f"give a count ≥ {MIN_WORKING_VERTICES:,} (e.g. 100000) or 'full'"
+        )
+    if working_vertices < MIN_WORKING_VERTICES:
+        raise MeshError(
+            f"working resolution {working_vertices:,} vertices is too coarse for the reference's lids and "
+            f"lips; give at least {MIN_WORKING_VERTICES:,}, or 'full' to rig every vertex directly"
+        )
+    return None if working_vertices >= n_vertices else int(working_vertices)
+
+
+def carry_rig(proxy: Rig, copy: WorkingCopy, mesh: Mesh, metadata: dict | None = None) -> Rig:
+    """The rig of the working copy (``proxy``, on ``copy.mesh``'s vertices) on ``mesh``: the user's
+    vertices (n, 3) in the rig's frame and units, their faces as the rig has them (turned where the
+    fit turned them).
+
+    See the module docstring for what is carried and how.
+    """
+    tie = copy.embedding
+    pick = tie.matrix()  # (n, k)
+    n = mesh.n_vertices
+    # 1. skin weights: interpolated, the 4 largest kept and renormalised
+    weights = (pick @ proxy.skin_weights).toarray()
+    weights = _top_influences(weights, MAX_INFLUENCES)
+
+    # 2. parts: a whole piece lands on one piece of the copy; a face takes its first vertex's
+    nearest = tie.triangles[np.arange(n), np.argmax(tie.bary, axis=1)]  # (n,) copy vertex
+    copy_part = np.zeros(proxy.n_vertices, dtype=np.int64)
+    names = list(proxy.mesh.parts)
+    for i, name in enumerate(names):
+        copy_part[proxy.mesh.faces[proxy.mesh.parts[name]].ravel()] = i
+    face_part = copy_part[nearest[mesh.faces[:, 0]]]
+    parts = {name: np.flatnonzero(face_part == i) for i, name in enumerate(names)}
+    rigid = np.zeros(n, dtype=bool)
+    for name in names:
+        if name != "skin":
+            rigid[np.unique(mesh.faces[parts[name]])] = True
+    dense = dataclasses.replace(mesh, parts=parts, materials={})
+
+    # 3. vertex sets: interpolated indicators kept from MEMBERSHIP
+    def indicator(ids: np.ndarray) -> np.ndarray:
+        values = np.zeros(proxy.n_vertices)
+        values[ids] = 1.0
+        return pick @ values
+
+    def members(ids: np.ndarray) -> np.ndarray:
+        return np.flatnonzero((indicator(ids) >= MEMBERSHIP) & ~rigid)
+
+    regions = {name: members(ids) for name, ids in proxy.regions.items()}
+    if "upper_lip" in regions and "lower_lip" in regions:
+        both = np.intersect1d(regions["upper_lip"], regions["lower_lip"])
+        if len(both):
+            upper = indicator(proxy.regions["upper_lip"])[both] >= indicator(proxy.regions["lower_lip"])[both]
+            regions["lower_lip"] = np.setdiff1d(regions["lower_lip"], both[upper])
+            regions["upper_lip"] = np.setdiff1d(regions["upper_lip"], both[~upper])
+
+    # 4. surface points: the closest point of the dense skin
+    skin_faces = parts["skin"] if "skin" in parts else np.arange(mesh.n_faces)
+    points = [
+        *proxy.landmarks.values(),
+        *(p for m in proxy.muscles for p in (m.origin, m.insertion)),
+        *(p for w in proxy.wires for p in w.points),
+    ]
+    moved = iter(_on_skin(surface_positions(points, proxy.mesh.vertices, proxy.mesh.faces), mesh, skin_faces))
+    landmarks = {name: next(moved) for name in proxy.landmarks}
+    muscles = tuple(dataclasses.replace(m, origin=next(moved), insertion=next(moved)) for m in proxy.muscles)
+    wires = tuple(
+        dataclasses.replace(w, points=tuple(next(moved) for _ in w.points), vertices=members(w.vertices))
+        for w in proxy.wires
+    )
+    skin_weights = sp.csr_matrix(weights)
+    anatomy = _carried_anatomy(proxy, pick, dense, landmarks, regions, skin_weights)
+    return Rig(
+        mesh=dense,
+        units=proxy.units,
+        scale=proxy.scale,
+        landmarks=landmarks,
+        regions=regions,
+        muscles=muscles,
+        wires=wires,
+        bones=proxy.bones,
+        skin_weights=skin_weights,
+        channels=proxy.channels,
+        metadata={**proxy.metadata, **(metadata or {})},
+        anatomy=anatomy,
+    )
+
+
+def _top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
+    """Each row (n, bones) with its ``limit`` largest weights kept and renormalised to sum 1."""
+    if weights.shape[1] > limit:
+        cut = -np.partition(-weights, limit - 1, axis=1)[:, limit - 1 : limit]
+        weights = np.where(weights >= cut, weights, 0.0)
+    weights[weights < 1e-6] = 0.0
+    weights /= weights.sum(axis=1, keepdims=True)
+    return weights
+
+
+def _on_skin(points: np.ndarray, mesh: Mesh, skin_faces: np.ndarray) -> list[SurfacePoint]:
+    """The closest point (as a ``SurfacePoint`` of ``mesh``) on the faces ``skin_faces`` to each of
+    ``points`` (q, 3), searched among the faces around the nearest skin vertices."""
+    skin = np.unique(mesh.faces[skin_faces])
+    _, near = cKDTree(mesh.vertices[skin]).query(points, k=min(16, len(skin)))
+    around = np.zeros(mesh.n_vertices, dtype=bool)
+    around[skin[np.ravel(near)]] = True
+    candidates = skin_faces[around[mesh.faces[skin_faces]].any(axis=1)]
+    found = closest_points(mesh.vertices, mesh.faces[candidates], points)
+    return [
+        SurfacePoint(int(candidates[f]), tuple(b.tolist()))
+        for f, b in zip(found.faces, found.bary, strict=True)
+    ]
+
+
+def _carried_field(pick: sp.csr_matrix, ids: np.ndarray, values: np.ndarray, keep: np.ndarray):
+    """A field ``values`` (k, d) on the copy's vertices ``ids`` interpolated at the dense vertices:
+    (dense ids (m,), values (m, d)), for the dense vertices whose triangle touches ``ids`` and that
+    ``keep`` (n,) bool allows."""
+    full = np.zeros((pick.shape[1], values.shape[1]))
+    full[ids] = values
+    touched = np.zeros(pick.shape[1])
+    touched[ids] = 1.0
+    out = np.flatnonzero(((pick @ touched) > 0) & keep)
+    return out, pick[out] @ full
+
+
+def _carried_anatomy(
+    proxy: Rig,
+    pick: sp.csr_matrix,
+    mesh: Mesh,
+    landmarks: dict[str, SurfacePoint],
+    regions: dict[str, np.ndarray],
+    skin_weights: sp.csr_matrix,
+) -> Anatomy:
+    """The anatomy of the dense rig: per-vertex fields interpolated from ``proxy.anatomy``, the ones
+    that pair vertices found again on ``mesh`` (lip contacts, lid margins, accessory rivets)."""
+    body = proxy.anatomy
+    n = mesh.n_vertices
+    deformable = np.zeros(n, dtype=bool)
+    deformable[skin_vertices(mesh)] = True
+
+    def carried(fields):
+        out = []
+        for field in fields:
+            ids, offsets = _carried_field(pick, field.vertices, field.offsets_rel, deformable)
+            out.append(dataclasses.replace(field, vertices=ids, offsets_rel=offsets))
+        return tuple(out)
+
+    thickness = pick @ body.thickness_rel
+    corners = {
+        side: np.stack([
+            landmarks[f"eye_inner_corner_{side}"].position(mesh.vertices, mesh.faces),
+            landmarks[f"eye_outer_corner_{side}"].position(mesh.vertices, mesh.faces),
+        ])
+        for side in ("L", "R")
+        if f"eye_inner_corner_{side}" in landmarks and f"eye_outer_corner_{side}" in landmarks
+    }  # fmt: skip
+    return Anatomy(
+        creases=carried(body.creases),
+        skull=forehead_skull(mesh.vertices, regions, proxy.scale),
+        lip_contact=lip_contact(mesh.vertices, regions, proxy.scale),
+        accessories=find_accessories(mesh, proxy.scale, skin_weights),
+        thickness_rel=thickness,
+        lids=find_lid_contacts(mesh.vertices, mesh.faces, mesh.parts, regions, corners) if body.lids else (),
+        actions=carried(body.actions),
+    )
