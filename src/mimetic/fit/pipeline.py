@@ -31,8 +31,8 @@ from mimetic.fit.working import carry_rig, working_copy, working_vertices_for
 from mimetic.head.model import DEFAULT_RESOLUTION
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import convert_units, detect_units
-from mimetic.mesh.validate import validate_mesh
-from mimetic.mesh.weld import SEAM_AREA_SHARE, Weld, find_weld, seam_vertices
+from mimetic.mesh.validate import MeshReport, validate_mesh
+from mimetic.mesh.weld import SEAM_AREA_SHARE, Weld, find_weld
 from mimetic.mesh.winding import winding_flips
 from mimetic.rig.model import Rig
 from mimetic.rig.recipe import build_rig
@@ -77,7 +77,7 @@ class RigResult:
     working_vertices: int | None = None
 
 
-def _checked_mesh(mesh: Mesh) -> Mesh:
+def _checked_mesh(mesh: Mesh) -> tuple[Mesh, MeshReport]:
     if mesh.n_vertices > MAX_VERTICES:
         raise MeshError(
             f"the mesh has {mesh.n_vertices:,} vertices; rig_head takes at most {MAX_VERTICES:,}. "
@@ -95,7 +95,7 @@ def _checked_mesh(mesh: Mesh) -> Mesh:
             stacklevel=3,
         )
         mesh = Mesh(mesh.vertices, mesh.faces, parts=mesh.parts, colors=mesh.colors, units=units)
-    return mesh
+    return mesh, report
 
 
 def rig_head(
@@ -150,12 +150,12 @@ def _rig(
 ) -> RigResult:
     """``rig_head``, with ``landmarks`` None found by MediaPipe on the mesh that is fitted (the
     working copy when there is one)."""
-    mesh = _checked_mesh(mesh)
+    mesh, checked = _checked_mesh(mesh)
     working = working_vertices_for(mesh.n_vertices, working_vertices)
     if landmarks is not None and len(landmarks.names) < 8:
         raise LandmarkError(f"got {len(landmarks.names)} landmarks; rigging needs at least 8")
     weld = find_weld(mesh)
-    seams = len(seam_vertices(mesh)) if weld.n_merged else 0
+    seams = checked.n_seam_vertices if weld.n_merged else 0
     if seams:
         warnings.warn(
             f"{seams:,} vertices lie on unwelded seams (UV seams, an unwelded patch or a triangle soup); "
@@ -165,7 +165,10 @@ def _rig(
             stacklevel=2,
         )
     faces = mesh.faces.copy()  # the user's faces as the rig will have them
-    reversed_faces = winding_flips(weld.mesh.vertices, weld.mesh.faces, min_share=SEAM_AREA_SHARE)
+    if weld.n_merged or checked.n_reversed_faces:
+        reversed_faces = winding_flips(weld.mesh.vertices, weld.mesh.faces, min_share=SEAM_AREA_SHARE)
+    else:  # validate_mesh found every piece consistent (with min_share 0, which turns more)
+        reversed_faces = np.zeros(weld.mesh.n_faces, dtype=bool)
     if reversed_faces.any():
         warnings.warn(
             f"{int(reversed_faces.sum()):,} faces wind against their neighbours (a patch turned inside out, "

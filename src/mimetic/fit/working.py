@@ -34,17 +34,25 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from mimetic.errors import MeshError
+from mimetic.fit.transfer import close_lids
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.decimate import Embedding, decimate, embed
 from mimetic.mesh.geometry import connected_components
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
-from mimetic.rig.anatomy import Anatomy, find_accessories, find_lid_contacts, forehead_skull, lip_contact
+from mimetic.rig.anatomy import (
+    Accessories,
+    Anatomy,
+    find_accessories,
+    find_lid_contacts,
+    forehead_skull,
+    lip_contact,
+)
 from mimetic.rig.anatomy.derive import skin_vertices
 from mimetic.rig.model import Rig
 
 WORKING_THRESHOLD = 200_000
 """``rig_head`` rigs a working copy of a mesh with more vertices than this (see docs/rigging.md)."""
-WORKING_VERTICES = 100_000
+WORKING_VERTICES = 50_000
 """The working copy's vertex count (about: each piece is decimated to its share)."""
 MIN_WORKING_VERTICES = 5_000
 """The smallest working copy accepted: below it the reference's mouth and lids have too few vertices."""
@@ -52,6 +60,17 @@ KEEP_WHOLE = 300
 """A connected piece with fewer vertices than this is kept as it is in the working copy."""
 CHUNK = 200_000
 """Dense points embedded at a time (the closest-point search holds ~1 kB per point)."""
+EMBED_CANDIDATES = 6
+"""Copy triangles (nearest by centroid) among which each dense vertex finds its closest: the dense
+vertices lie on the copy's surface, where 6 find the same triangle as 12 at half the time."""
+SLIVER_REL = 1e-6
+"""Copy triangles with less area than this × the piece's median are not embedded in (quadric
+decimation leaves a few needles whose barycentric coordinates are not defined)."""
+LID_BOX_REL = (1.3, 1.1)
+"""Half the width and height of the box around an eye's corners its lid contacts are found in, ×
+the eye width (``mesh.openings`` looks over 0.85 and 0.6)."""
+LID_DEPTH_REL = 3.0
+"""... and how far behind the eyeball's centre the box reaches, × the eyeball's radius."""
 MAX_INFLUENCES = 4
 MEMBERSHIP = 0.5
 
@@ -108,8 +127,9 @@ def working_copy(mesh: Mesh, welded: Mesh, index: np.ndarray, target: int) -> Wo
         v, f = welded.vertices[used], local.reshape(-1, 3)
         if len(used) >= KEEP_WHOLE:
             v, f = _decimated(v, f, max(KEEP_WHOLE, round(len(used) * share)))
+        tie = f[_areas(v, f) > SLIVER_REL * np.median(_areas(v, f))]  # slivers have no barycentrics
         for chunk in np.array_split(users, max(1, -(-len(users) // CHUNK))):
-            tied = embed(mesh.vertices[chunk], v, f)
+            tied = embed(mesh.vertices[chunk], v, tie, candidates=EMBED_CANDIDATES)
             triangles[chunk], bary[chunk], offset[chunk] = tied.triangles + start, tied.bary, tied.offset
         vertices.append(v)
         faces.append(f + start)
@@ -133,6 +153,12 @@ def _decimated(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
     used, local = np.unique(f, return_inverse=True)
     return np.ascontiguousarray(v[used]), local.reshape(-1, 3).astype(np.int64)
+
+
+def _areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Twice the area (m,) of each triangle."""
+    tri = vertices[faces]
+    return np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
 
 
 def working_vertices_for(n_vertices: int, working_vertices: int | str | None) -> int | None:
@@ -218,8 +244,12 @@ def carry_rig(proxy: Rig, copy: WorkingCopy, mesh: Mesh, metadata: dict | None =
         dataclasses.replace(w, points=tuple(next(moved) for _ in w.points), vertices=members(w.vertices))
         for w in proxy.wires
     )
+    weights, bones = _closed_lids(proxy, dense, weights, regions, landmarks)
+    # accessories take the weights at their rivets, as the transfer gives them (a lash swings with its lid)
+    riding = find_accessories(dense, proxy.scale, sp.csr_matrix(weights))
+    weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
     skin_weights = sp.csr_matrix(weights)
-    anatomy = _carried_anatomy(proxy, pick, dense, landmarks, regions, skin_weights)
+    anatomy = _carried_anatomy(proxy, pick, dense, landmarks, regions, skin_weights, riding)
     return Rig(
         mesh=dense,
         units=proxy.units,
@@ -228,7 +258,7 @@ def carry_rig(proxy: Rig, copy: WorkingCopy, mesh: Mesh, metadata: dict | None =
         regions=regions,
         muscles=muscles,
         wires=wires,
-        bones=proxy.bones,
+        bones=bones,
         skin_weights=skin_weights,
         channels=proxy.channels,
         metadata={**proxy.metadata, **(metadata or {})},
@@ -280,6 +310,7 @@ def _carried_anatomy(
     landmarks: dict[str, SurfacePoint],
     regions: dict[str, np.ndarray],
     skin_weights: sp.csr_matrix,
+    accessories: Accessories,
 ) -> Anatomy:
     """The anatomy of the dense rig: per-vertex fields interpolated from ``proxy.anatomy``, the ones
     that pair vertices found again on ``mesh`` (lip contacts, lid margins, accessory rivets)."""
@@ -308,8 +339,80 @@ def _carried_anatomy(
         creases=carried(body.creases),
         skull=forehead_skull(mesh.vertices, regions, proxy.scale),
         lip_contact=lip_contact(mesh.vertices, regions, proxy.scale),
-        accessories=find_accessories(mesh, proxy.scale, skin_weights),
+        accessories=accessories,
         thickness_rel=thickness,
-        lids=find_lid_contacts(mesh.vertices, mesh.faces, mesh.parts, regions, corners) if body.lids else (),
+        lids=_lid_contacts(proxy, mesh, regions, corners) if body.lids else (),
         actions=carried(body.actions),
     )
+
+
+def _eye_faces(proxy: Rig, mesh: Mesh, side: str, corners: np.ndarray) -> np.ndarray:
+    """The faces (f,) of ``mesh`` around eye ``side`` (``corners`` (2, 3)) where its lids are searched:
+    a box over ``LID_BOX_REL`` × the eye width around the corners (seen from the front, every face
+    in it: the window where ``mesh.openings`` looks for the opening between the lids lies inside),
+    reaching ``LID_DEPTH_REL`` × the eyeball's radius behind its centre."""
+    eye = proxy.bone(f"eye_{side}")
+    width = float(np.linalg.norm(corners[1] - corners[0]))
+    middle = corners.mean(axis=0)
+    centres = mesh.vertices[mesh.faces].mean(axis=1)  # (m, 3)
+    near = np.all(np.abs(centres[:, :2] - middle[:2]) <= np.array(LID_BOX_REL) * width, axis=1)
+    near &= centres[:, 2] >= eye.head[2] - LID_DEPTH_REL * eye.length
+    return np.flatnonzero(near)
+
+
+def _cropped(mesh: Mesh, crop: np.ndarray) -> tuple[Mesh, np.ndarray]:
+    """``mesh`` with only the faces ``crop`` (every vertex kept), and the new index (m,) of each old
+    face (-1: cropped away)."""
+    renumber = np.full(mesh.n_faces, -1, dtype=np.int64)
+    renumber[crop] = np.arange(len(crop))
+    parts = {name: renumber[ids][renumber[ids] >= 0] for name, ids in mesh.parts.items()}
+    return dataclasses.replace(mesh, faces=mesh.faces[crop], parts=parts, materials={}), renumber
+
+
+def _lid_contacts(
+    proxy: Rig, mesh: Mesh, regions: dict[str, np.ndarray], corners: dict[str, np.ndarray]
+) -> tuple:
+    """``find_lid_contacts`` on ``mesh``, each eye searched on the faces around it only
+    (``_eye_faces``): the same contacts as on the whole mesh (the searches are local), in a second
+    instead of 40 at 1.7M vertices."""
+    out = []
+    for side, pair in corners.items():
+        if f"eye_{side}" not in proxy.bone_names:
+            continue
+        crop, _ = _cropped(mesh, _eye_faces(proxy, mesh, side, pair))
+        out += find_lid_contacts(crop.vertices, crop.faces, crop.parts, regions, {side: pair})
+    return tuple(sorted(out, key=lambda c: c.side))  # left eye first, each eye's layers in order
+
+
+def _closed_lids(
+    proxy: Rig,
+    mesh: Mesh,
+    weights: np.ndarray,
+    regions: dict[str, np.ndarray],
+    landmarks: dict[str, SurfacePoint],
+) -> tuple[np.ndarray, tuple]:
+    """``weights`` (n, b) whose upper lids close onto ``mesh``'s own lower lids, and the bones with
+    the lids' pivots where they can (``fit.transfer``'s closing, on the faces around the eyes): the
+    copy's closing, interpolated, lands between the dense margin's vertices."""
+    sides = [
+        s for s in ("L", "R") if f"eye_inner_corner_{s}" in landmarks and f"eye_outer_corner_{s}" in landmarks
+    ]
+    if not sides or not all(f"eye_{s}" in proxy.bone_names for s in sides):
+        return weights, proxy.bones
+    corners = {
+        s: np.stack(
+            [landmarks[f"eye_{c}_corner_{s}"].position(mesh.vertices, mesh.faces) for c in ("inner", "outer")]
+        )
+        for s in sides
+    }
+    crop, renumber = _cropped(
+        mesh, np.unique(np.concatenate([_eye_faces(proxy, mesh, s, corners[s]) for s in sides]))
+    )
+    local = {
+        name: SurfacePoint(int(renumber[landmarks[name].face]), landmarks[name].bary)
+        for s in sides
+        for name in (f"eye_inner_corner_{s}", f"eye_outer_corner_{s}")
+        if renumber[landmarks[name].face] >= 0
+    }
+    out, bones = close_lids(proxy, crop, weights, regions, list(proxy.bones), local, proxy.scale)
+    return out, tuple(bones)

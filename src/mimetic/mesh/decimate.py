@@ -17,7 +17,7 @@ import fast_simplification
 import numpy as np
 from scipy import sparse
 
-from mimetic.mesh.closest import closest_points
+from mimetic.mesh.closest import CANDIDATES, closest_points
 
 
 def decimate(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
@@ -87,12 +87,16 @@ class Embedding:
         return on + np.einsum("nk,nkd->nd", self.offset, _frames(corners))
 
 
-def embed(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> Embedding:
-    """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``."""
+def embed(
+    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, candidates: int = CANDIDATES
+) -> Embedding:
+    """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``,
+    among the ``candidates`` triangles whose centroids lie nearest (``mesh.closest``: fewer is faster,
+    and enough for points that lie on the proxy's surface, as a dense mesh's vertices do)."""
     points = np.asarray(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    found = closest_points(vertices, faces, points)
+    found = closest_points(vertices, faces, points, candidates=candidates)
     if np.any(found.faces < 0):
         raise ValueError("some points found no proxy triangle")
     triangles = faces[found.faces]
