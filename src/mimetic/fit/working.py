@@ -360,13 +360,36 @@ def _eye_faces(proxy: Rig, mesh: Mesh, side: str, corners: np.ndarray) -> np.nda
     return np.flatnonzero(near)
 
 
-def _cropped(mesh: Mesh, crop: np.ndarray) -> tuple[Mesh, np.ndarray]:
-    """``mesh`` with only the faces ``crop`` (every vertex kept), and the new index (m,) of each old
-    face (-1: cropped away)."""
-    renumber = np.full(mesh.n_faces, -1, dtype=np.int64)
-    renumber[crop] = np.arange(len(crop))
-    parts = {name: renumber[ids][renumber[ids] >= 0] for name, ids in mesh.parts.items()}
-    return dataclasses.replace(mesh, faces=mesh.faces[crop], parts=parts, materials={}), renumber
+@dataclass(frozen=True)
+class _Crop:
+    """The faces of a mesh around its eyes as a mesh of their own: ``mesh`` (its vertices are
+    ``kept`` (k,) of the whole mesh's, in order), ``face`` (m,) each whole-mesh face's index in it
+    (-1: cropped away) and ``vertex`` (n,) each whole-mesh vertex's (-1: cropped away)."""
+
+    mesh: Mesh
+    kept: np.ndarray
+    face: np.ndarray
+    vertex: np.ndarray
+
+    def regions(self, regions: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Vertex sets of the whole mesh as sets (sorted) of the crop's vertices."""
+        out = {}
+        for name, ids in regions.items():
+            local = self.vertex[ids]
+            out[name] = local[local >= 0]
+        return out
+
+
+def _cropped(mesh: Mesh, crop: np.ndarray) -> _Crop:
+    """``mesh``'s faces ``crop`` (f,) and the vertices they use, as a ``_Crop``."""
+    face = np.full(mesh.n_faces, -1, dtype=np.int64)
+    face[crop] = np.arange(len(crop))
+    kept, local = np.unique(mesh.faces[crop], return_inverse=True)
+    vertex = np.full(mesh.n_vertices, -1, dtype=np.int64)
+    vertex[kept] = np.arange(len(kept))
+    parts = {name: face[ids][face[ids] >= 0] for name, ids in mesh.parts.items()}
+    small = Mesh(mesh.vertices[kept], local.reshape(-1, 3), parts=parts, units=mesh.units)
+    return _Crop(small, kept, face, vertex)
 
 
 def _lid_contacts(
@@ -374,13 +397,19 @@ def _lid_contacts(
 ) -> tuple:
     """``find_lid_contacts`` on ``mesh``, each eye searched on the faces around it only
     (``_eye_faces``): the same contacts as on the whole mesh (the searches are local), in a second
-    instead of 40 at 1.7M vertices."""
+    instead of a minute at 1.7M vertices."""
     out = []
     for side, pair in corners.items():
         if f"eye_{side}" not in proxy.bone_names:
             continue
-        crop, _ = _cropped(mesh, _eye_faces(proxy, mesh, side, pair))
-        out += find_lid_contacts(crop.vertices, crop.faces, crop.parts, regions, {side: pair})
+        crop = _cropped(mesh, _eye_faces(proxy, mesh, side, pair))
+        small = crop.mesh
+        for contact in find_lid_contacts(
+            small.vertices, small.faces, small.parts, crop.regions(regions), {side: pair}
+        ):
+            out.append(
+                dataclasses.replace(contact, upper=crop.kept[contact.upper], lower=crop.kept[contact.lower])
+            )
     return tuple(sorted(out, key=lambda c: c.side))  # left eye first, each eye's layers in order
 
 
@@ -405,14 +434,16 @@ def _closed_lids(
         )
         for s in sides
     }
-    crop, renumber = _cropped(
-        mesh, np.unique(np.concatenate([_eye_faces(proxy, mesh, s, corners[s]) for s in sides]))
-    )
+    crop = _cropped(mesh, np.unique(np.concatenate([_eye_faces(proxy, mesh, s, corners[s]) for s in sides])))
     local = {
-        name: SurfacePoint(int(renumber[landmarks[name].face]), landmarks[name].bary)
+        name: SurfacePoint(int(crop.face[landmarks[name].face]), landmarks[name].bary)
         for s in sides
         for name in (f"eye_inner_corner_{s}", f"eye_outer_corner_{s}")
-        if renumber[landmarks[name].face] >= 0
+        if crop.face[landmarks[name].face] >= 0
     }
-    out, bones = close_lids(proxy, crop, weights, regions, list(proxy.bones), local, proxy.scale)
+    near, bones = close_lids(
+        proxy, crop.mesh, weights[crop.kept], crop.regions(regions), list(proxy.bones), local, proxy.scale
+    )
+    out = weights.copy()
+    out[crop.kept] = near
     return out, tuple(bones)
