@@ -21,6 +21,7 @@ many of the bake's poses gave them, not once per pose.
 from __future__ import annotations
 
 import heapq
+import logging
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -30,10 +31,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mimetic.engines.basis import Basis, Corrective, evaluate_basis
+from mimetic.engines.basis import Basis, Corrective, basis_bytes, evaluate_basis, human_bytes
 
 if TYPE_CHECKING:  # mimetic.engines imports this module
     from mimetic.engines import Engine
+
+log = logging.getLogger(__name__)
+
+CORRECTIVES = 24
+"""Pairwise correctives a bake keeps by default (the strongest pairs)."""
+SAMPLES = 32
+"""Random poses a bake checks its basis on by default."""
 
 Progress = Callable[[int, int], None]
 
@@ -113,9 +121,10 @@ def bake(
     """Linearise ``engine`` into a ``Basis`` with up to ``correctives`` pairwise terms; report its error
     over ``samples`` random poses. Both default to the engine's ``bake_correctives`` and
     ``bake_samples`` where it has them (the tissue engine solves a pose in about a quarter of a second,
-    so it bakes without correctives and checks 4 poses), else to 24 and 32."""
-    correctives = getattr(engine, "bake_correctives", 24) if correctives is None else correctives
-    samples = getattr(engine, "bake_samples", 32) if samples is None else samples
+    so it bakes without correctives and checks 4 poses), else to ``CORRECTIVES`` and ``SAMPLES``.
+    The basis's size is logged (info) before it is made."""
+    correctives = getattr(engine, "bake_correctives", CORRECTIVES) if correctives is None else correctives
+    samples = getattr(engine, "bake_samples", SAMPLES) if samples is None else samples
     poses = 0
 
     def deform(values: np.ndarray) -> np.ndarray:
@@ -143,6 +152,13 @@ def _bake(
     amplitude = np.zeros(c)
     held: dict[int, np.ndarray] = {}  # the posed vertices of channels a delta cannot give back
     moving: dict[int, np.ndarray] = {}  # (n,) bool: the vertices each channel moves
+    log.info(
+        "baking %d channels (+ up to %d correctives) of %s vertices: the basis will hold %s (float64)",
+        c,
+        correctives,
+        f"{rig.n_vertices:,}",
+        human_bytes(basis_bytes(c, rig.n_vertices, correctives)),
+    )
     deltas = np.zeros((c, rig.n_vertices, 3))
     steps = c + samples
     done = 0

@@ -223,6 +223,23 @@ class Basis:
         return _Runs.build(self, np.dtype(np.float32))
 
 
+def basis_bytes(channels: int, vertices: int, correctives: int = 0, *, itemsize: int = 8) -> int:
+    """Bytes of a basis's arrays: ``(channels + correctives + 1) × vertices × 3 × itemsize`` (the
+    deltas, the correctives' deltas and the neutral; float64 unless ``itemsize`` says otherwise)."""
+    return (channels + correctives + 1) * vertices * 3 * itemsize
+
+
+def human_bytes(size: float) -> str:
+    """A byte count for people: '812 kB', '1.4 MiB'…, '2.31 GiB' (binary units above a kilobyte)."""
+    if size < 1024:
+        return f"{int(size)} B"
+    for unit in ("KiB", "MiB", "GiB", "TiB"):
+        size /= 1024
+        if size < 1024 or unit == "TiB":
+            return f"{size:.3g} {unit}" if size < 100 else f"{size:.0f} {unit}"
+    raise AssertionError("unreachable")
+
+
 def check_activations(channels: Sequence[str], activations: object, *, ndim: int | None = None) -> np.ndarray:
     """Activations as float64 (c,) or (f, c) for a basis's ``channels`` (``rig.activations.check_shape``)."""
     return check_shape(channels, activations, ndim=ndim, owner="basis")
