@@ -58,3 +58,21 @@ def test_carry_interpolates_linear_fields_exactly(sphere):
     assert np.allclose(tied.matrix() @ field, carried)
     weights = np.stack([field, 2 * field], axis=1)  # (k, 2) values carry column by column
     assert np.allclose(tied.carry(weights)[:, 1], 2 * carried)
+
+
+def test_embed_with_normals_takes_the_triangle_facing_its_way():
+    # two touching sheets as lips are: the upper faces down at z = 0, the lower up at z = -0.001
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    upper = np.column_stack([square, np.zeros(4)])
+    lower = np.column_stack([square, np.full(4, -0.001)])
+    vertices = np.concatenate([upper, lower])
+    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]])  # upper: normal -z; lower: +z
+    point = np.array([[0.4, 0.3, -0.0004]])  # nearer the upper sheet, on the lower lip's side
+    plain = embed(point, vertices, faces)
+    facing = embed(point, vertices, faces, normals=np.array([[0.0, 0.0, 1.0]]))
+    assert set(plain.triangles[0]) <= {0, 1, 2, 3}
+    assert set(facing.triangles[0]) <= {4, 5, 6, 7}
+    np.testing.assert_allclose(facing.carry(vertices)[0, :2], point[0, :2], atol=1e-12)
+    # no triangle facing its way among the candidates: the closest of any
+    away = embed(point, vertices, faces[:2], normals=np.array([[0.0, 0.0, 1.0]]))
+    assert set(away.triangles[0]) <= {0, 1, 2, 3}

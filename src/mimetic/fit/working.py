@@ -7,8 +7,9 @@ vertex count: 620 s and 7.4 GiB at 1.68M vertices). It rigs a *working copy* ins
 1. ``working_copy``: each connected piece of the welded mesh (skin, each eyeball, each tooth …)
    is decimated on its own (``mesh.decimate``) to its share of ``WORKING_VERTICES``; a piece under
    ``KEEP_WHOLE`` vertices is kept as it is. Every one of the user's vertices is then tied to the
-   closest triangle of *its own piece's* copy (``mesh.decimate.embed``), so an eyelid never takes
-   the eyeball's data however close they lie.
+   closest triangle of *its own piece's* copy facing its way (``mesh.decimate.embed``), so an
+   eyelid never takes the eyeball's data however close they lie, nor the upper lip the lower's
+   where they touch.
 2. The existing pipeline rigs the copy (landmarks from its renders, fit, transfer).
 3. ``carry_rig``: the rig on the user's vertices, order, units and faces: skin weights are
    interpolated through each vertex's embedding (then the 4 largest kept and renormalised); region
@@ -38,7 +39,7 @@ from mimetic.errors import MeshError
 from mimetic.fit.transfer import close_lids
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.decimate import Embedding, decimate, embed
-from mimetic.mesh.geometry import connected_components
+from mimetic.mesh.geometry import connected_components, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.rig.anatomy import (
     Accessories,
@@ -128,11 +129,14 @@ def working_copy(mesh: Mesh, welded: Mesh, index: np.ndarray, target: int) -> Wo
             continue
         used, local = np.unique(piece_faces, return_inverse=True)
         v, f = welded.vertices[used], local.reshape(-1, 3)
+        # the user's vertices' own normals (k, 3), from the piece's welded surface
+        normals = vertex_normals(v, f)[np.searchsorted(used, index[users])]
         if len(used) >= KEEP_WHOLE:
             v, f = _decimated(v, f, max(KEEP_WHOLE, round(len(used) * share)))
         tie = f[_areas(v, f) > SLIVER_REL * np.median(_areas(v, f))]  # slivers have no barycentrics
-        for chunk in np.array_split(users, max(1, -(-len(users) // CHUNK))):
-            tied = embed(mesh.vertices[chunk], v, tie, candidates=EMBED_CANDIDATES)
+        for rows in np.array_split(np.arange(len(users)), max(1, -(-len(users) // CHUNK))):
+            chunk = users[rows]
+            tied = embed(mesh.vertices[chunk], v, tie, candidates=EMBED_CANDIDATES, normals=normals[rows])
             triangles[chunk], bary[chunk], offset[chunk] = tied.triangles + start, tied.bary, tied.offset
         vertices.append(v)
         faces.append(f + start)

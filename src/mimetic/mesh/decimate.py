@@ -88,15 +88,32 @@ class Embedding:
 
 
 def embed(
-    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, candidates: int = CANDIDATES
+    points: np.ndarray,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    candidates: int = CANDIDATES,
+    normals: np.ndarray | None = None,
 ) -> Embedding:
     """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``,
     among the ``candidates`` triangles whose centroids lie nearest (``mesh.closest``: fewer is faster,
-    and enough for points that lie on the proxy's surface, as a dense mesh's vertices do)."""
+    and enough for points that lie on the proxy's surface, as a dense mesh's vertices do).
+
+    With ``normals`` (n, 3) (unit, the points' own surface normals) a point takes the closest
+    triangle facing its way (so a vertex under the upper lip never ties to the lower lip touching
+    it), or the closest of any when none of its candidates does."""
     points = np.asarray(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    found = closest_points(vertices, faces, points, candidates=candidates)
+    if normals is None:
+        found = closest_points(vertices, faces, points, candidates=candidates)
+    else:
+        found = closest_points(vertices, faces, points, query_normals=normals, candidates=candidates)
+        lost = found.faces < 0
+        if lost.any():
+            rescue = closest_points(vertices, faces, points[lost], candidates=candidates)
+            for field in ("points", "faces", "bary"):
+                getattr(found, field)[lost] = getattr(rescue, field)
     if np.any(found.faces < 0):
         raise ValueError("some points found no proxy triangle")
     triangles = faces[found.faces]
