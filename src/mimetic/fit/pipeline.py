@@ -7,7 +7,10 @@ winding check (a mirrored export has its faces turned inside out: they are turne
 warning), then non-rigid registration, ``fit.reference``); report the fit and gate it
 (``fit.report``); rebuild the rig recipe on the fitted reference (``rig.recipe.build_rig``);
 transfer it to the welded vertices (``fit.transfer``) and move it back onto the user's own vertices
-(``rig.weld.unweld_rig``: every copy of a merged vertex takes the same data).
+(``rig.weld.unweld_rig``: every copy of a merged vertex takes the same data). A mesh over
+``fit.working.WORKING_THRESHOLD`` vertices (or any, with ``working_vertices``) is fitted and
+transferred on a decimated working copy instead, after its checks, weld and winding, and the copy's
+rig is carried to every one of its vertices (``fit.working``).
 """
 
 from __future__ import annotations
