@@ -188,9 +188,9 @@ from mimetic.rig.format import load_rig
 rig = load_rig(W / "head.mrig")
 deltas = np.load(W / "deltas.npy", mmap_mode="r")
 t = time.perf_counter()
-basis = Basis(rig.channel_names, rig.mesh.vertices, deltas)
-del deltas
-export_glb(rig, W / "head.glb", morph_targets=morph_targets_from_basis(basis, rig))
+targets = morph_targets_from_basis(Basis(rig.channel_names, rig.mesh.vertices, deltas), rig)
+del deltas  # the basis is gone too: the targets are what the file needs
+export_glb(rig, W / "head.glb", morph_targets=targets)
 """,
     "11. export USD (morph targets)": """
 from mimetic.engines.basis import Basis
@@ -200,9 +200,9 @@ from mimetic.rig.format import load_rig
 rig = load_rig(W / "head.mrig")
 deltas = np.load(W / "deltas.npy", mmap_mode="r")
 t = time.perf_counter()
-basis = Basis(rig.channel_names, rig.mesh.vertices, deltas)
-del deltas
-export_usd(rig, W / "head.usdc", morph_targets=morph_targets_from_basis(basis, rig))
+targets = morph_targets_from_basis(Basis(rig.channel_names, rig.mesh.vertices, deltas), rig)
+del deltas  # the basis is gone too: the targets are what the file needs
+export_usd(rig, W / "head.usdc", morph_targets=targets)
 """,
 }
 """Each stage's child code: it sets ``t`` where the timed work begins; the files it reads are
@@ -273,8 +273,15 @@ def run_stage(stage: str, folder: Path, bound_gib: float) -> Cell:
     return Cell(measured.peak_gib, seconds, direct="DIRECT" in measured.stdout.split())
 
 
-def measure(levels: tuple[int, ...], bound_gib: float, keep: Path | None) -> tuple[list[int], dict]:
-    """Every stage at every size: (vertex counts, {stage: [Cell per size]})."""
+BAKE_STAGES = ("9. bake (wire engine)", "10. export GLB (morph targets)", "11. export USD (morph targets)")
+
+
+def measure(
+    levels: tuple[int, ...], bound_gib: float, keep: Path | None, bake_up_to: int | None = None
+) -> tuple[list[int], dict]:
+    """Every stage at every size: (vertex counts, {stage: [Cell per size]}); the bake and export
+    stages only up to ``bake_up_to`` vertices when given. What is measured so far is written to
+    ``out/memory.json`` after each size (``--table`` prints it)."""
     ict, meta = load_ict(shared_data_dir() / "ict-facekit")
     sizes, cells = [], {stage: [] for stage in STAGES}
     for level in levels:
@@ -285,6 +292,9 @@ def measure(levels: tuple[int, ...], bound_gib: float, keep: Path | None) -> tup
             write_input(mesh, ict_landmarks(mesh, meta), folder)
             for stage in STAGES:
                 need = NEEDS.get(stage)
+                if stage in BAKE_STAGES and bake_up_to is not None and mesh.n_vertices > bake_up_to:
+                    cells[stage].append(Cell(failure=f"not run (--bake-up-to {bake_up_to:,})"))
+                    continue
                 if need and cells[need][-1].failure:
                     cells[stage].append(Cell(failure=f"skipped ({need.split(' ', 1)[1]} failed)"))
                     continue
@@ -294,7 +304,24 @@ def measure(levels: tuple[int, ...], bound_gib: float, keep: Path | None) -> tup
                     f"   {mesh.n_vertices:>9,} vertices  {stage:<40} "
                     + (cell.failure or f"{cell.peak_gib:6.2f} GiB {cell.seconds:8.1f} s")
                 )
+        save_json(sizes, cells)
     return sizes, cells
+
+
+def save_json(sizes: list[int], cells: dict) -> None:
+    """The cells measured so far, as ``out/memory.json``."""
+    raw = {stage: [c.__dict__ for c in row] for stage, row in cells.items()}
+    report.OUT.mkdir(exist_ok=True)
+    with atomic_write(report.OUT / "memory.json", "w") as handle:
+        json.dump({"sizes": sizes, "cells": raw}, handle, indent=1)
+
+
+def load_json() -> tuple[list[int], dict]:
+    """``out/memory.json`` as (sizes, {stage: [Cell]}), sizes not measured by every stage dropped."""
+    data = json.loads((report.OUT / "memory.json").read_text())
+    cells = {stage: [Cell(**c) for c in row] for stage, row in data["cells"].items()}
+    count = min(len(row) for row in cells.values())
+    return data["sizes"][:count], {stage: row[:count] for stage, row in cells.items()}
 
 
 def slope(sizes: list[int], values: list[float]) -> float:
@@ -342,6 +369,12 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="up to 420k vertices (ICT subdivided twice)")
     parser.add_argument("--bound-gib", type=float, default=BOUND_GIB, help="the peak allowed per stage")
     parser.add_argument("--keep", type=Path, help="make the working folders in DIR (default: the system's)")
+    parser.add_argument(
+        "--bake-up-to", type=int, metavar="N", help="bake and export only meshes of at most N vertices"
+    )
+    parser.add_argument(
+        "--table", action="store_true", help="print the table of out/memory.json, measure nothing"
+    )
     args = parser.parse_args()
     if shared_data_dir() is None:
         report.console.print(
@@ -349,7 +382,12 @@ def main() -> None:
         )
         return
     begin = time.perf_counter()
-    sizes, cells = measure(QUICK_LEVELS if args.quick else LEVELS, args.bound_gib, args.keep)
+    if args.table:
+        sizes, cells = load_json()
+    else:
+        sizes, cells = measure(
+            QUICK_LEVELS if args.quick else LEVELS, args.bound_gib, args.keep, args.bake_up_to
+        )
     columns, rows = table(sizes, cells, args.bound_gib)
     markdown = report.show(
         f"Peak RSS and time of each stage, fresh child per stage (bound {args.bound_gib:g} GiB)",
@@ -358,9 +396,7 @@ def main() -> None:
         "growth: log-log slope between the two largest sizes (1 = linear in the vertex count)",
     )
     report.save("memory", [markdown])
-    raw = {stage: [c.__dict__ for c in row] for stage, row in cells.items()}
-    with atomic_write(report.OUT / "memory.json", "w") as handle:
-        json.dump({"sizes": sizes, "cells": raw}, handle, indent=1)
+    save_json(sizes, cells)
     report.console.print(f"benchmark wall time {time.perf_counter() - begin:.0f} s")
 
 
