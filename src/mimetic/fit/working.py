@@ -12,7 +12,9 @@ vertex count: 620 s and 7.4 GiB at 1.68M vertices). It rigs a *working copy* ins
    where they touch.
 2. The existing pipeline rigs the copy (landmarks from its renders, fit, transfer).
 3. ``carry_rig``: the rig on the user's vertices, order, units and faces: skin weights are
-   interpolated through each vertex's embedding (then the 4 largest kept and renormalised); region
+   interpolated through each vertex's embedding (then the 4 largest kept and renormalised) and
+   diffused over the user's own surface by about one edge of the copy, so they bend smoothly
+   rather than at the copy's edges (where a skinned dense surface would show facets); region
    and wire-set memberships are interpolated indicators kept from 0.5 (the transfer's own rule),
    each lip vertex in one lip only; per-vertex anatomy (crease and tissue-action offsets, the tissue
    thickness) is interpolated the same way; what refers to vertex indices is found again on the
@@ -75,6 +77,8 @@ LID_BOX_REL = (1.3, 1.1)
 the eye width (``mesh.openings`` looks over 0.85 and 0.6)."""
 LID_DEPTH_REL = 3.0
 """... and how far behind the eyeball's centre the box reaches, × the eyeball's radius."""
+MAX_DIFFUSION_STEPS = 64
+"""The most neighbour-averaging steps the carried skin weights take (``_diffused``)."""
 MAX_INFLUENCES = 4
 MEMBERSHIP = 0.5
 
@@ -219,6 +223,11 @@ def carry_rig(proxy: Rig, copy: WorkingCopy, mesh: Mesh, metadata: dict | None =
     # 1. skin weights: interpolated, the 4 largest kept and renormalised
     weights = (pick @ proxy.skin_weights).toarray()
     weights = _top_influences(weights, MAX_INFLUENCES)
+    # interpolated over the copy's triangles the weights bend at the copy's edges, which a skinned
+    # dense surface shows as facets (a jaw opening crumpled the cheeks at 420k): diffused over the
+    # user's own surface by about one copy edge they bend smoothly (each rigid piece stays one-hot)
+    steps = _diffusion_steps(copy, mesh)
+    weights = _top_influences(_diffused(weights, mesh.faces, steps), MAX_INFLUENCES)
 
     # 2. parts: a whole piece lands on one piece of the copy; a face takes its first vertex's
     nearest = tie.triangles[np.arange(n), np.argmax(tie.bary, axis=1)]  # (n,) copy vertex
@@ -295,6 +304,40 @@ def _top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
     weights[weights < 1e-6] = 0.0
     weights /= weights.sum(axis=1, keepdims=True)
     return weights
+
+
+def _median_edge(vertices: np.ndarray, faces: np.ndarray, sample: int = 100_000) -> float:
+    """The median length of the first edge of (up to ``sample`` evenly spread) ``faces``."""
+    picked = faces[:: max(1, len(faces) // sample)]
+    return float(np.median(np.linalg.norm(vertices[picked[:, 1]] - vertices[picked[:, 0]], axis=1)))
+
+
+def _diffusion_steps(copy: WorkingCopy, mesh: Mesh) -> int:
+    """Averaging steps over ``mesh``'s edges that spread a value about one edge of the copy: k steps
+    of neighbour averaging spread it about ``edge × sqrt(k / 2)``, so ``k = (copy edge / edge)² / 2``,
+    at most ``MAX_DIFFUSION_STEPS``."""
+    ratio = _median_edge(copy.mesh.vertices, copy.mesh.faces) / max(
+        _median_edge(mesh.vertices, mesh.faces), 1e-300
+    )
+    return int(min(MAX_DIFFUSION_STEPS, np.ceil(0.5 * ratio**2)))
+
+
+def _diffused(values: np.ndarray, faces: np.ndarray, steps: int) -> np.ndarray:
+    """``values`` (n, c) after ``steps`` rounds of each vertex taking the mean of itself and its
+    neighbours along ``faces`` (m, 3); rows that sum to 1 still do."""
+    if steps <= 0:
+        return values
+    n = len(values)
+    rows = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2], faces[:, 1], faces[:, 2], faces[:, 0]])
+    cols = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0], faces[:, 0], faces[:, 1], faces[:, 2]])
+    adjacency = sp.csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=(n, n))
+    adjacency.data[:] = 1.0  # an edge shared by two faces counts once
+    adjacency = adjacency + sp.identity(n, dtype=np.float32, format="csr")
+    average = sp.diags(1.0 / np.asarray(adjacency.sum(axis=1)).ravel()) @ adjacency  # rows sum to 1
+    out = values
+    for _ in range(steps):
+        out = average @ out
+    return np.asarray(out)
 
 
 def _on_skin(points: np.ndarray, mesh: Mesh, skin_faces: np.ndarray) -> list[SurfacePoint]:
