@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mimetic.engines.basis import Basis, Corrective, basis_bytes, evaluate_basis, human_bytes
+from mimetic.engines.basis import Basis, Corrective, Handover, basis_bytes, evaluate_basis, human_bytes
 
 if TYPE_CHECKING:  # mimetic.engines imports this module
     from mimetic.engines import Engine
@@ -191,9 +191,10 @@ def _bake(
         del moving
         strongest = _strongest_pairs(deform, zero, neutral, held, deltas, amplitude, candidates, correctives)
         names = rig.channel_names
-        terms = [Corrective((names[i], names[j]), d) for i, j, d in strongest]
-    basis = Basis(rig.channel_names, neutral, deltas, tuple(terms))
-    del deltas, held, terms  # the basis holds its own copies
+        terms = [Corrective((names[i], names[j]), Handover(d)) for i, j, d in strongest]
+        del strongest
+    basis = Basis(rig.channel_names, neutral, Handover(deltas), tuple(terms))
+    del deltas, held, terms  # the basis holds them
     # the error over random poses, one pose at a time and with the basis's equation written out:
     # (samples, n, 3) frames, or evaluate_basis's layouts (copies of every term), would not fit at 1M
     pairs = [(rig.channel_index(a), rig.channel_index(b)) for a, b in (t.channels for t in basis.correctives)]
