@@ -5,9 +5,11 @@ is tissue moving as a sheet or a mass instead (the automated-rigging thesis's §
 muscle catalogue): the frontalis lifts the whole forehead, the corrugator and procerus gather the
 brows, the orbital orbicularis oculi lifts the cheek toward the eye (AU6), a smile piles the malar
 fat up, air pressure puffs the cheeks, the marginal orbicularis oris rolls the lips in and its
-peripheral part pushes them out into a funnel, the lips slide sideways together, the nasalis and
-the dilator naris move the nose's wing, the levator of the nose wrinkles and lifts its side, and
-the tongue pokes out, lifts its tip or draws back.
+peripheral part pushes them out into a funnel, the lips slide sideways together, the nasalis draws
+the side of the nose up, the levator of the nose wrinkles and lifts its side, and the tongue pokes
+out, lifts its tip or draws back. The small muscles of the brow's head and of the nose's tip, wing
+and side move fields sized by their feature instead of the head (``local``); ``find_actions`` builds
+both kinds.
 
 Each is an ``Action``: a displacement field over the rest surface, linear in one channel and added
 before skinning (as the creases are), so it bakes exactly and follows the jaw it rides on. Two
