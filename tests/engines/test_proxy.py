@@ -32,21 +32,28 @@ def joy(name: str, proxy: int | str) -> np.ndarray:
     return engine(name, proxy).deform(compose_pose(rig, (("joy", 1.0),)))
 
 
-@pytest.mark.parametrize("name", ["fem", "tissue"])
-def test_a_skin_above_the_threshold_poses_through_an_automatic_proxy(name, monkeypatch):
+def test_a_skin_above_the_threshold_gets_an_automatic_proxy(monkeypatch):
     rig = small_rig(None)
     full = build_volume(rig, proxy="off").n_skin
     monkeypatch.setattr(volume_module, "PROXY_ABOVE", full - 1)  # the small head counts as dense
     monkeypatch.setattr(volume_module, "PROXY_VERTICES", PROXY)
-    dense = make_engine(rig, name)
-    assert dense.volume.is_proxy
-    assert abs(dense.volume.n_skin - PROXY) < 0.05 * PROXY
-    rest = dense.deform(np.zeros(len(rig.channels)))
+    volume = build_volume(rig)
+    assert volume.is_proxy and volume.proxy_skin.triangles.shape == (int((volume.index >= 0).sum()), 3)
+    assert abs(volume.n_skin - PROXY) < 0.05 * PROXY
+    monkeypatch.setattr(volume_module, "PROXY_ABOVE", full)
+    assert not build_volume(rig).is_proxy  # at the threshold: the full skin
+
+
+@pytest.mark.parametrize("name", ["fem", "tissue"])
+def test_a_proxied_engine_rests_exactly_and_poses(name):
+    rig = small_rig(None)
+    proxied = engine(name, PROXY)
+    rest = proxied.deform(np.zeros(len(rig.channels)))
     assert rest.shape == rig.mesh.vertices.shape and rest.dtype == np.float64
     assert np.array_equal(rest, rig.mesh.vertices)  # exactly the rest, every vertex
-    posed = dense.deform(compose_pose(rig, (("joy", 1.0),)))
-    lips = np.concatenate([rig.regions["upper_lip"], rig.regions["cheek_L"]])
-    assert np.linalg.norm(posed[lips] - rig.mesh.vertices[lips], axis=1).max() > 0.02 * rig.scale
+    where = np.concatenate([rig.regions["upper_lip"], rig.regions["cheek_L"]])
+    moved = np.linalg.norm(joy(name, PROXY)[where] - rig.mesh.vertices[where], axis=1)
+    assert moved.max() > 0.02 * rig.scale
 
 
 @pytest.mark.parametrize("name", ["fem", "tissue"])
