@@ -73,12 +73,14 @@ head of 95,000 skin vertices) took 59 s and 4.4 GiB for ``fem``, then 67 s and a
 with ``tissue`` beside it; a denser skin takes a proxy (``PROXY_ABOVE``)."""
 PROXY_ABOVE = 30_000
 """A skin of more welded vertices than this gets a proxy by default (``proxy="auto"``): the default
-head (about 5,000) and ICT-FaceKit's (about 11,000) stay at full resolution, a phone or
-photogrammetry scan (0.5-5 M) does not."""
+head's (9,617) and ICT-FaceKit's (19,167) stay at full resolution, a phone or photogrammetry scan's
+(0.5-5 M vertices) does not."""
 PROXY_VERTICES = 20_000
-"""Skin vertices of the automatic proxy: a volume of 60,000 nodes, twice ICT-FaceKit's full skin, so
-the lips, lids and nasolabial folds keep several proxy triangles across them, at about a quarter of
-the set-up of the largest volume ``MAX_NODES`` allows."""
+"""Skin vertices of the automatic proxy: a volume of 60,000 nodes, a little more than ICT-FaceKit's
+full skin, so the lips, lids and nasolabial folds keep several proxy triangles across them, at a fifth
+of the largest volume ``MAX_NODES`` allows: ICT subdivided twice (300,177 skin vertices) poses in
+1.8 GiB (fem) and 2.2 GiB (tissue), a quarter of the 8 GiB a 420k-vertex scan may take
+(``benchmarks/bench_proxy.py``)."""
 SLIVER_QUALITY = 1e-3
 """Proxy triangles of a quality (``4√3 area / Σ edge²``, 1 for an equilateral one) or an area (over
 the median's) below this are left out: they hold no tissue, and their flat prisms have no stiffness
