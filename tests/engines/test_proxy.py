@@ -11,7 +11,7 @@ import pytest
 from mimetic.animate.expressions import compose_pose
 from mimetic.engines import make_engine
 from mimetic.engines import volume as volume_module
-from mimetic.engines.volume import MIN_PROXY, build_volume, proxy_size
+from mimetic.engines.volume import MIN_PROXY, build_volume, proxy_size, solid_triangles
 from mimetic.errors import MimeticError
 from mimetic.mesh.weld import find_weld
 from mimetic.testing import small_rig
@@ -116,3 +116,25 @@ def test_only_a_volume_too_big_even_as_asked_is_refused(monkeypatch):
         proxy_size(300_000, 25_000)
     with pytest.raises(MimeticError, match=r"skin has 300,000 vertices.*--proxy auto"):
         proxy_size(300_000, "off")
+
+
+def test_flat_slivers_and_specks_hold_no_tissue():
+    """Quadric collapse of a subdivided scan leaves triangles with a vertex on the opposite edge and
+    clusters of three vertices within 1e-7 of each other; their prisms could not be inverted."""
+    vertices = np.array(
+        [
+            [0, 0, 0],
+            [1, 0, 0],
+            [0, 1, 0],
+            [1, 1, 0],
+            [0.5, 0.5 + 1e-9, 0],
+            [2, 2, 0],
+            [2 + 1e-8, 2, 0],
+            [2, 2 + 1e-8, 0],
+        ],
+        dtype=np.float64,
+    )
+    faces = np.array([[0, 1, 2], [1, 3, 2], [1, 4, 2], [5, 6, 7], [0, 1, 3]])
+    keep = solid_triangles(vertices, faces)
+    assert keep.shape == (5,) and keep.dtype == bool
+    np.testing.assert_array_equal(keep, [True, True, False, False, True])  # the cap on 1-2; the speck

@@ -355,6 +355,17 @@ def proxy_size(n_skin: int, proxy: int | str = "auto") -> int | None:
     return size
 
 
+def solid_triangles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Which triangles ``faces`` (q, 3) of ``vertices`` (p, 3) can hold tissue (q,) bool: not a flat
+    sliver nor a speck (``SLIVER_QUALITY``)."""
+    corners = vertices[faces]  # (q, 3, 3)
+    area = 0.5 * np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+    squared = (np.diff(corners, axis=1, append=corners[:, :1]) ** 2).sum(axis=(1, 2))  # Σ edge²
+    return (4 * np.sqrt(3) * area > SLIVER_QUALITY * squared) & (area > SLIVER_QUALITY * np.median(area))
+
+
 def _proxy_surface(
     rig: Rig, weld: Weld, used: np.ndarray, faces: np.ndarray, size: int
 ) -> tuple[np.ndarray, np.ndarray, Embedding, Embedding]:
@@ -367,12 +378,8 @@ def _proxy_surface(
     node_of[used] = np.arange(len(used))
     dense, dense_faces = weld.mesh.vertices[used], node_of[faces]
     proxy_v, proxy_f = decimate(dense, dense_faces, size)
-    corners = proxy_v[proxy_f]  # (q, 3, 3)
-    area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
-    squared = (np.diff(corners, axis=1, append=corners[:, :1]) ** 2).sum(axis=(1, 2))
-    keep = (2 * np.sqrt(3) * area > SLIVER_QUALITY * squared) & (area > SLIVER_QUALITY * np.median(area))
-    proxy_f = proxy_f[keep]  # no tissue in a flat sliver or a speck
-    kept, proxy_f = np.unique(proxy_f, return_inverse=True)  # drop any vertex the collapse left alone
+    proxy_f = proxy_f[solid_triangles(proxy_v, proxy_f)]
+    kept, proxy_f = np.unique(proxy_f, return_inverse=True)  # drop any vertex left without a triangle
     proxy_v, proxy_f = proxy_v[kept], proxy_f.reshape(-1, 3)
     of_vertex = node_of[weld.index]  # (n,) each rig vertex's welded skin vertex, -1 off the tissue
     inside = np.flatnonzero(of_vertex >= 0)
