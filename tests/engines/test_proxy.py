@@ -138,3 +138,13 @@ def test_flat_slivers_and_specks_hold_no_tissue():
     keep = solid_triangles(vertices, faces)
     assert keep.shape == (5,) and keep.dtype == bool
     np.testing.assert_array_equal(keep, [True, True, False, False, True])  # the cap on 1-2; the speck
+
+
+def test_tying_the_skin_in_chunks_ties_it_the_same(monkeypatch):
+    rig = small_rig(None)
+    whole = engine("fem", PROXY).volume.proxy_skin
+    monkeypatch.setattr(volume_module, "EMBED_CHUNK", 1_000)  # the small head's 2,610 in three chunks
+    chunked = build_volume(rig, proxy=PROXY).proxy_skin
+    assert chunked.triangles.shape == whole.triangles.shape == (2_610, 3)
+    np.testing.assert_array_equal(chunked.triangles, whole.triangles)
+    np.testing.assert_array_equal(chunked.bary, whole.bary)

@@ -88,6 +88,9 @@ to invert. Quadric collapse on a flat patch (a subdivided scan: its midpoints li
 edges) leaves such slivers and specks (three vertices within 1e-7 cm): 958 of 39,720 triangles of
 ICT-FaceKit subdivided twice, decimated to 20,000 vertices."""
 MIN_PROXY = 500
+EMBED_CHUNK = 200_000
+"""Skin vertices tied to the proxy at a time: the closest-triangle search holds its candidates for a
+chunk (about 1 KiB per vertex), so a 5 M-vertex scan does not hold them all at once."""
 """The smallest proxy asked for by size: fewer skin vertices leave no tissue across the lips."""
 NEIGHBOURS = 12
 """Nearest mesh vertices checked around a skull node (``_depths``)."""
@@ -388,7 +391,19 @@ def _proxy_surface(
     rig_faces = rig_faces[(of_vertex[rig_faces] >= 0).all(axis=1)]  # the skin's own triangles
     nodes = embed(proxy_v, rig.mesh.vertices, rig_faces, normals=vertex_normals(proxy_v, proxy_f))
     normals = vertex_normals(dense, dense_faces)[of_vertex[inside]]
-    skin = embed(rig.mesh.vertices[inside], proxy_v, proxy_f, normals=normals)
+    parts = [
+        embed(
+            rig.mesh.vertices[inside[i : i + EMBED_CHUNK]],
+            proxy_v,
+            proxy_f,
+            normals=normals[i : i + EMBED_CHUNK],
+        )
+        for i in range(0, len(inside), EMBED_CHUNK)
+    ]
+    skin = Embedding(
+        *(np.concatenate([getattr(p, name) for p in parts]) for name in ("triangles", "bary", "offset")),
+        len(proxy_v),
+    )
     return proxy_v, proxy_f, nodes, skin
 
 
