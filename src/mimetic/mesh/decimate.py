@@ -87,12 +87,25 @@ class Embedding:
         return on + np.einsum("nk,nkd->nd", self.offset, _frames(corners))
 
 
-def embed(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> Embedding:
-    """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``."""
+def embed(
+    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, normals: np.ndarray | None = None
+) -> Embedding:
+    """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``.
+
+    With ``normals`` (n, 3) (the points' unit normals) a point takes the closest triangle that faces
+    its way (``closest_points``' normal test), so where two sheets of a surface nearly touch (the
+    lips, a fold) a point is not tied to the other sheet; a point no such triangle faces takes the
+    closest of all.
+    """
     points = np.asarray(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    found = closest_points(vertices, faces, points)
+    found = closest_points(vertices, faces, points, query_normals=normals)
+    if normals is not None and np.any(found.faces < 0):  # facing no triangle: the closest of all
+        lost = np.flatnonzero(found.faces < 0)
+        anyway = closest_points(vertices, faces, points[lost])
+        for name in ("points", "faces", "bary", "distance"):
+            getattr(found, name)[lost] = getattr(anyway, name)
     if np.any(found.faces < 0):
         raise ValueError("some points found no proxy triangle")
     triangles = faces[found.faces]
