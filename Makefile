@@ -34,7 +34,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	rm -f benchmarks/out/*.md
 	status=0; for b in bench_render bench_engines bench_basis bench_rig bench_export bench_speech \
-		bench_capture bench_batch bench_view bench_live bench_memory bench_physics bench_quality \
+		bench_capture bench_batch bench_view bench_live bench_memory bench_physics bench_proxy bench_quality \
 		sweep_motion validate_capture; do \
 		$(BIN)/python benchmarks/$$b.py || { status=1; echo "$$b.py failed"; }; done; \
 	$(BIN)/python benchmarks/write_docs.py && exit $$status

@@ -54,6 +54,30 @@ def test_pose_writes_the_posed_mesh_in_rig_vertex_order(rig_file, tmp_path, engi
     assert not np.allclose(mesh.vertices, rig.mesh.vertices)
 
 
+def test_pose_a_proxy_too_small_exits_1_saying_what_to_ask(rig_file, tmp_path):
+    out = tmp_path / "out.png"
+    result = run_cli("pose", rig_file, "--engine", "fem", "--proxy", "10", "-o", out)
+    assert result.exit_code == 1
+    last = result.output.strip().splitlines()[-1]  # after the preparation's progress line
+    assert last.startswith("error: --proxy 10:") and "'auto'" in last and "at least 500" in last
+    assert "Traceback" not in result.output and not out.exists()
+
+
+def test_pose_simulates_through_the_proxy_asked_for(rig_file, tmp_path):
+    from mimetic.animate.expressions import expression_pose
+    from mimetic.engines import make_engine
+
+    rig = small_rig()
+    out = tmp_path / "joy_proxy.obj"
+    result = run_cli("pose", rig_file, "--expr", "joy", "--engine", "fem", "--proxy", "1500", "-o", out)
+    assert result.exit_code == 0, result.output
+    mesh = load_mesh(out)
+    assert mesh.vertices.shape == (rig.n_vertices, 3)
+    proxied = make_engine(rig, "fem", proxy=1500)
+    assert proxied.volume.is_proxy
+    np.testing.assert_allclose(mesh.vertices, proxied.deform(expression_pose(rig, "joy")), atol=1e-5)
+
+
 def test_pose_reads_a_user_library(rig_file, tmp_path):
     library = tmp_path / "mine.json"
     library.write_text(json.dumps({"expressions": {"smirk": {"values": {"zygomatic_major_L": 0.9}}}}))
@@ -90,6 +114,7 @@ def test_pose_bad_input_exits_1_with_one_line_naming_the_problem(rig_file, tmp_p
         (["--engine", "foo"], "--engine"),
         (["--view", "side"], "--view"),
         (["--size", "8"], "--size"),
+        (["--proxy", "fast"], "--proxy"),
     ],
 )
 def test_pose_bad_option_values_are_usage_errors(rig_file, tmp_path, args, word):

@@ -119,6 +119,8 @@ def test_arkit_pose_accepts_ict_names_and_halves(rig):
     assert arkit_values({"cheekPuff_L": 1.0}) == {"cheek_puff_L": 1.0}  # a half drives its side
     left = arkit_values({"browInnerUp_L": 1.0})
     assert left == pytest.approx({"frontalis_inner_L": 1.0})
+    down = arkit_values({"browDown_L": 1.0})  # the brow lowerer: corrugator, depressor supercilii, procerus
+    assert down == pytest.approx({"corrugator_L": 1.0, "depressor_supercilii_L": 1.0, "procerus": 0.5})
 
 
 def test_arkit_pose_refuses_bad_weights(rig):

@@ -291,3 +291,31 @@ def test_expression_keeps_the_upper_lip_above_the_lower(rig, engines, name, engi
     assert gap.min() >= -LIP_TOLERANCE_CM, (
         f"{name} on {engine_name}: upper lip {-gap.min():.3f} cm below the lower"
     )
+
+
+# ---- anger: the brow lowerer (AU4)
+
+
+@pytest.mark.parametrize("engine_name", ENGINES)
+def test_anger_brings_the_inner_brows_together_and_down(rig, engines, engine_name):
+    """Corrugator, depressor supercilii and procerus: the brows' heads closer together and lower than
+    at rest, and lower than the corrugator and procerus alone brought them."""
+    engine = engines[engine_name]
+    f = rig.mesh.faces
+
+    def heads(values):
+        v = engine.deform(values)
+        return np.stack([rig.landmarks[f"brow_inner_{s}"].position(v, f) for s in "LR"])  # (2, 3)
+
+    rest, anger = heads(pose(rig)), heads(expression_pose(rig, "anger"))
+    without = _values(rig, expression_pose(rig, "anger"))
+    without.update(depressor_supercilii_L=0.0, depressor_supercilii_R=0.0)
+    no_depressor = heads(pose(rig, without))
+    eye = np.linalg.norm(
+        np.subtract(
+            *(rig.landmarks[f"eye_{c}_corner_L"].position(rig.mesh.vertices, f) for c in ("outer", "inner"))
+        )
+    )
+    assert anger[0, 0] - anger[1, 0] < rest[0, 0] - rest[1, 0] - 0.05 * eye  # closer across
+    assert (anger[:, 1] < rest[:, 1] - 0.1 * eye).all()
+    assert (anger[:, 1] < no_depressor[:, 1] - 0.05 * eye).all()

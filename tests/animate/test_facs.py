@@ -225,3 +225,20 @@ def test_action_units_do_what_they_say_on_the_engine(rig, engine):
     rest_r = _landmarks(rig, rest, ["eye_upper_lid_R", "eye_lower_lid_R"])
     assert lids_l[0, 1] - lids_l[1, 1] < 0.05  # the left fissure shut (rest ~0.8 cm)
     np.testing.assert_allclose(lids_r, rest_r, atol=1e-9)
+
+
+def test_nose_and_brow_action_units_move_their_feature(rig, engine):
+    """AU4 lowers the brows' heads and draws them together; AU38 widens the nose at the wings and
+    AU39 narrows its side; both one-sided units leave the other side alone."""
+    rest = engine.deform(facs_pose(rig, {}))
+
+    def moved(request, names):
+        return _landmarks(rig, engine.deform(facs_pose(rig, request)), names) - _landmarks(rig, rest, names)
+
+    brows = moved({"AU4": 1.0}, ["brow_inner_L", "brow_inner_R"])
+    assert (brows[:, 1] < -0.3).all() and brows[0, 0] < -0.1 < 0.1 < brows[1, 0]  # cm: down and inward
+    wings = moved({"AU38_L": 1.0}, ["alar_base_L", "alar_base_R"])
+    assert wings[0, 0] > 0.1 and np.linalg.norm(wings[1]) < MOVE_TOL_CM
+    values = facs_pose(rig, {"AU39_R": 1.0})
+    assert values[rig.channel_index("nasalis_transverse_R")] == 1.0
+    assert values[rig.channel_index("nasalis_transverse_L")] == 0.0

@@ -229,12 +229,15 @@ def test_the_tissue_volume_is_mirror_symmetric_on_a_symmetric_head():
 
 
 @pytest.mark.parametrize("name", ["fem", "tissue"])
-def test_a_skin_too_big_for_the_physical_engines_is_refused_with_what_to_do(name, monkeypatch):
+def test_a_skin_too_big_for_the_physical_engines_takes_a_proxy_or_is_refused_with_what_to_do(
+    name, monkeypatch
+):
     rig = small_rig()
     nodes = build_volume(rig).n_nodes
     monkeypatch.setattr(volume_module, "MAX_NODES", nodes - 1)
-    with pytest.raises(MimeticError, match=rf"{nodes:,} nodes.*at most {nodes - 1:,}.*Decimate the mesh"):
-        make_engine(rig, name)
+    with pytest.raises(MimeticError, match=rf"{nodes:,} nodes.*at most {nodes - 1:,}.*proxy='auto'"):
+        make_engine(rig, name, proxy="off")
+    assert make_engine(rig, name, proxy=1_500).volume.n_nodes < nodes  # through a proxy it fits
     monkeypatch.setattr(volume_module, "MAX_NODES", nodes)
     assert build_volume(rig).n_nodes == nodes  # at the limit it builds
 
@@ -246,7 +249,7 @@ def test_the_mouth_lining_follows_the_lips_it_continues():
     lining = np.setdiff1d(np.unique(rig.mesh.faces[rig.mesh.parts["mouth"]]), volume.surface)
     assert np.isin(volume.cavity, lining).all()
     moved = engine.deltas[rig.channel_index("orbicularis_oris")]
-    source = volume.surface[volume.cavity_source]
+    source = volume.cavity_source
     assert np.abs(moved[source]).max() > 0.01 * rig.scale
     np.testing.assert_allclose(moved[volume.cavity], moved[source] * volume.cavity_fall[:, None], atol=1e-12)
     nearest = np.linalg.norm(rig.mesh.vertices[volume.cavity] - rig.mesh.vertices[source], axis=1)

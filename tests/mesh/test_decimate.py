@@ -60,19 +60,28 @@ def test_carry_interpolates_linear_fields_exactly(sphere):
     assert np.allclose(tied.carry(weights)[:, 1], 2 * carried)
 
 
-def test_embed_with_normals_takes_the_triangle_facing_its_way():
-    # two touching sheets as lips are: the upper faces down at z = 0, the lower up at z = -0.001
-    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    upper = np.column_stack([square, np.zeros(4)])
-    lower = np.column_stack([square, np.full(4, -0.001)])
+def test_embed_with_normals_keeps_points_on_their_own_sheet():
+    # two sheets 0.1 apart, like lips at rest: the upper faces +z, the lower -z (a closed slit's sides)
+    grid = np.stack(np.meshgrid(np.linspace(0, 1, 6), np.linspace(0, 1, 6)), -1).reshape(-1, 2)
+    quads = [
+        (i * 6 + j, i * 6 + j + 1, (i + 1) * 6 + j + 1, (i + 1) * 6 + j) for i in range(5) for j in range(5)
+    ]
+    up = np.array([(a, b, c) for a, b, c, d in quads] + [(a, c, d) for a, b, c, d in quads])
+    upper = np.column_stack([grid, np.full(36, 0.05)])
+    lower = np.column_stack([grid, np.full(36, -0.05)])
     vertices = np.concatenate([upper, lower])
-    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]])  # upper: normal -z; lower: +z
-    point = np.array([[0.4, 0.3, -0.0004]])  # nearer the upper sheet, on the lower lip's side
-    plain = embed(point, vertices, faces)
-    facing = embed(point, vertices, faces, normals=np.array([[0.0, 0.0, 1.0]]))
-    assert set(plain.triangles[0]) <= {0, 1, 2, 3}
-    assert set(facing.triangles[0]) <= {4, 5, 6, 7}
-    np.testing.assert_allclose(facing.carry(vertices)[0, :2], point[0, :2], atol=1e-12)
-    # no triangle facing its way among the candidates: the closest of any
-    away = embed(point, vertices, faces[:2], normals=np.array([[0.0, 0.0, 1.0]]))
-    assert set(away.triangles[0]) <= {0, 1, 2, 3}
+    faces = np.concatenate([up, up[:, ::-1] + 36])  # the lower sheet wound the other way: faces -z
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(0.1, 0.9, (200, 2)), np.full(200, -0.01)])  # nearer the lower
+    normals = np.tile([0.0, 0.0, 1.0], (200, 1))  # but on the upper sheet's side
+    before = points.copy()
+    plain = embed(points, vertices, faces)
+    facing = embed(points, vertices, faces, normals=normals)
+    assert facing.triangles.shape == (200, 3) and facing.triangles.dtype == np.int64
+    assert np.all(plain.triangles >= 36)  # the closest triangles are the lower sheet's
+    assert np.all(facing.triangles < 36)  # the ones facing the points' way: the upper sheet's
+    assert np.abs(facing.place(vertices) - points).max() < 1e-9  # still exact at rest
+    assert np.array_equal(points, before)
+    # a point no triangle faces (the upper sheet alone, seen from below) takes the closest of all
+    away = embed(points[:3], upper, up, normals=-normals[:3])
+    assert np.array_equal(away.triangles, embed(points[:3], upper, up).triangles)

@@ -69,7 +69,7 @@ def _surface(rig) -> Surface:
 def test_find_actions_every_channel_of_the_table_drives_an_action(rig):
     driven = {c for a in _actions(rig) for c in a.gains}
     assert set(CHANNELS) <= set(rig.channel_names)
-    assert set(CHANNELS) - {"nasalis_L", "nasalis_R", "dilator_naris_L", "dilator_naris_R"} <= driven
+    assert set(CHANNELS) - {"nasalis_L", "nasalis_R"} <= driven
     assert {b.channel + s for b in BUMPS for s in (("_L", "_R") if b.sided else ("",))} <= driven
     assert {r.channel for r in ROLLS} <= driven
 

@@ -441,6 +441,31 @@ def test_load_rig_written_before_tissue_actions_derives_them(tmp_path):
     assert rig_differences(load_rig(old), rig) == []
 
 
+def test_load_rig_written_before_the_local_channels_loads_and_runs(tmp_path):
+    """A file from before the feature-local channels (depressor supercilii, septi, the nasalis parts)
+    loads with the channels it stored and runs; a control that needs a new channel (AU4) names it."""
+    from mimetic.animate.facs import FacsError, facs_pose
+    from mimetic.engines import make_engine
+    from mimetic.rig.activations import pose
+    from mimetic.rig.anatomy.local import CHANNELS as LOCAL
+    from mimetic.testing import small_rig
+
+    rig = small_rig()
+    good = save_rig(rig, tmp_path / "a.mrig")
+
+    def drop(doc):
+        doc["channels"] = [c for c in doc["channels"] if c["name"] not in LOCAL]
+        doc["anatomy"]["actions"] = [a for a in doc["anatomy"]["actions"] if not set(a["gains"]) & set(LOCAL)]
+
+    old = load_rig(rewrite(good, tmp_path / "old.mrig", doc=drop))
+    assert len(old.channels) == len(rig.channels) - len(LOCAL) and not set(LOCAL) & set(old.channel_names)
+    moved = make_engine(old, "wire").deform(pose(old, {"dilator_naris_L": 1.0})) - old.mesh.vertices
+    assert np.linalg.norm(moved, axis=1).max() > 0.05
+    assert facs_pose(old, {"AU12": 1.0}).shape == (len(old.channels),)
+    with pytest.raises(FacsError, match="depressor_supercilii_L"):
+        facs_pose(old, {"AU4": 1.0})
+
+
 @pytest.mark.parametrize(
     ("edit", "expected"),
     [

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from mimetic.animate.keyframes import from_poses
-from mimetic.tasks.parsing import channel_values, key_spec, name_value, pose_spec, weights
+from mimetic.tasks.parsing import channel_values, key_spec, name_value, pose_spec, proxy_spec, weights
 
 
 @pytest.mark.parametrize(
@@ -62,3 +62,12 @@ def test_weights_and_values_read_names_and_numbers():
         channel_values(["jaw_open"])
     with pytest.raises(ValueError, match="expected NAME=VALUE"):
         name_value("nose_length=inf")
+
+
+def test_proxy_spec_reads_auto_off_and_counts():
+    assert proxy_spec("auto") == "auto" and proxy_spec(" OFF ") == "off"
+    assert proxy_spec("20000") == 20_000 and proxy_spec("20_000") == 20_000
+    assert isinstance(proxy_spec("5000"), int)
+    for bad in ("fast", "-3", "2.5", ""):
+        with pytest.raises(ValueError, match="auto, off or a skin vertex count"):
+            proxy_spec(bad)

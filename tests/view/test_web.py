@@ -70,6 +70,10 @@ def test_channel_groups_follow_the_thesis_tab(web, rig):
     assert groups["jaw_open"] == "Jaw"
     assert groups["gaze_yaw"] == "Gaze"
     assert groups["tongue_out"] == "Tongue"
+    assert groups["depressor_supercilii_L"] == "Brows and eyes" and groups["depressor_labii_L"] == "Mouth"
+    assert {groups[n] for n in ("depressor_septi", "nasalis_alar_R", "nasalis_transverse_L")} == {
+        "Cheeks and nose"
+    }
     assert "Other" not in groups.values()
 
 

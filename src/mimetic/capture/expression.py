@@ -41,6 +41,14 @@ from mimetic.rig.model import Rig
 GAZE_CHANNELS = ("gaze_yaw", "gaze_pitch", "gaze_convergence")
 """Left out unless named in ``active``: markers and face landmarks have no iris points, and the rig's
 lids follow the gaze, so a lid marker would explain a blink as the eyes turning down."""
+NOSE_CHANNELS = (
+    "depressor_septi",
+    *(f"{name}_{side}" for name in ("dilator_naris", "nasalis_alar", "nasalis_transverse") for side in "LR"),
+)
+"""Also left out unless named in ``active``: the nose's small muscles move its tip and wings by about
+2 mm, twice the markers' noise, at the few points a face layout puts there (5 of iBUG's 68, none on
+the wing's side), so by default they would fit noise and what the levators do. On ICT's captured
+shapes (none of which moves them) the markers route's face residual rose 0.4–0.6 points with them."""
 MIN_MOVE_REL = 1e-3
 """Channels moving the markers less than this fraction of the strongest channel are held at 0."""
 FRAME_CHUNK = 2048
@@ -146,10 +154,13 @@ def skin_gram(rig: Rig, basis: Basis, channels: np.ndarray) -> tuple[np.ndarray,
 
 def visible_channels(basis: Basis, deltas: np.ndarray, active: Sequence[str] | None = None) -> np.ndarray:
     """(c,) bool: channels moving the markers (``deltas`` (c, m, 3)) by at least ``MIN_MOVE_REL`` of
-    the strongest, among ``active`` (default: all but the gaze, ``GAZE_CHANNELS``)."""
+    the strongest, among ``active`` (default: all but the gaze and the nose's small muscles,
+    ``GAZE_CHANNELS`` and ``NOSE_CHANNELS``)."""
     effect = np.sqrt(np.einsum("cmd,cmd->c", deltas, deltas))
     chosen = (
-        ~np.isin(basis.channels, GAZE_CHANNELS) if active is None else np.isin(basis.channels, list(active))
+        ~np.isin(basis.channels, GAZE_CHANNELS + NOSE_CHANNELS)
+        if active is None
+        else np.isin(basis.channels, list(active))
     )
     return (effect > MIN_MOVE_REL * effect.max()) & chosen
 
@@ -194,7 +205,7 @@ def determined_channels(
     rig: Rig, basis: Basis, markers: MarkerSet, *, noise: float, tolerance: float = 0.02
 ) -> tuple[str, ...]:
     """The channels a marker set determines: starting from every channel the markers see (but the
-    gaze, ``GAZE_CHANNELS``), drop the one with the largest ``noise_gain`` · ``noise`` / range until
+    gaze and the nose's small muscles), drop the one with the largest ``noise_gain`` · ``noise`` / range until
     each is within ``tolerance`` of its range (``noise``: per-coordinate marker noise in rig units,
     after smoothing)."""
     deltas = marker_deltas(rig, basis, markers)
@@ -220,8 +231,8 @@ def resolve_channels(
     rig: Rig, basis: Basis, markers: MarkerSet, spec: str, *, fps: float, cutoff_hz: float | None
 ) -> tuple[str, ...] | None:
     """The channels a ``--channels`` option names: "all" (None: every channel the markers see but
-    the gaze), "determined" (``determined_channels`` at 1 mm of marker noise, after the smoother at
-    ``cutoff_hz``), or comma-separated channel names.
+    the gaze and the nose's small muscles), "determined" (``determined_channels`` at 1 mm of marker
+    noise, after the smoother at ``cutoff_hz``), or comma-separated channel names.
 
     Raises
     ------

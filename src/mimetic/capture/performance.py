@@ -320,7 +320,8 @@ def solve_performance(
     neutral_frame : int
         A frame with a neutral expression (the paper's first frame), for the calibration.
     active : sequence of str, optional
-        Channels to solve for (default: every channel the markers see but the gaze).
+        Channels to solve for (default: every channel the markers see but the gaze and the nose's
+        small muscles, ``expression.NOSE_CHANNELS``).
     cutoff_hz : float or None
         Temporal smoothing cutoff (``capture.smooth``); None solves each frame on its own.
     regularization, sparsity : float

@@ -101,7 +101,8 @@ class LiveSolver:
         The landmarks are a tracker's (their contour points slide).
     calibration_s : float
     active : sequence of str, optional
-        Channels to solve (default: every channel the markers see but the gaze).
+        Channels to solve (default: every channel the markers see but the gaze and the nose's small
+        muscles, ``expression.NOSE_CHANNELS``).
     place : bool
         Move the markers to the performer's at the calibration.
     """

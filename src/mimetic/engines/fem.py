@@ -185,16 +185,20 @@ def fem_deltas(rig: Rig, volume: TissueVolume, solver: FemSolver) -> np.ndarray:
 
 
 class FemEngine:
-    """Linear FEM skin (a precomputed per-muscle basis) plus the shared chain; prepare once."""
+    """Linear FEM skin (a precomputed per-muscle basis) plus the shared chain; prepare once.
+
+    Options: ``skull`` (the chain's, as every engine) and ``proxy`` (``engines.volume.proxy_size``:
+    "auto", "off" or a skin vertex count), the skin the tissue volume lies under.
+    """
 
     name = "fem"
 
-    def __init__(self, rig: Rig, *, skull: bool = True, progress=None) -> None:
+    def __init__(self, rig: Rig, *, skull: bool = True, proxy: int | str = "auto", progress=None) -> None:
         report = progress or (lambda done, total: None)  # (done, total) of the 3 stages below
         self.rig = rig
         self.channels = rig.channel_names
         report(0, 3)
-        self.volume = build_volume(rig)
+        self.volume = build_volume(rig, proxy=proxy)
         report(1, 3)
         self.solver = prepare_fem(self.volume)
         report(2, 3)

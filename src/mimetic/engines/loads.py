@@ -102,11 +102,11 @@ def muscle_loads(
     """Each channel's forces on the fascia of ``volume`` at full activation (``MuscleLoads``);
     ``rollable``: the tissue can turn a lip (module docstring), so no load pushes into one;
     ``per_volume``: the Waters field is a force per unit volume of tissue, not of skin area."""
-    deltas = vector_deltas(rig).tocsc()  # (3n, c) on rig vertices
-    n, c = rig.n_vertices, len(rig.channels)
-    motion = deltas.toarray().reshape(n, 3, c)
+    deltas = vector_deltas(rig).tocsr()  # (3n, c) on rig vertices, row 3 i + axis
+    c = len(rig.channels)
     k = volume.n_skin
-    waters = motion[volume.surface]  # (k, 3, c) at the skin nodes
+    sampling = volume.sampling()  # (k, n): the skin nodes' vertices, or where a proxy's nodes lie
+    waters = np.stack([(sampling @ deltas[axis::3]).toarray() for axis in range(3)], axis=1)  # (k, 3, c)
     field = waters * (tissue_columns(volume) if per_volume else skin_areas(volume))[:, None, None]
     if rollable:
         hanging = ~volume.pinned[2 * k :]  # (k,) no bone behind: the lips (and the rims cut back)

@@ -711,7 +711,8 @@ class TissueEngine:
     ``deform(values)`` gives the static equilibrium of one pose; ``simulate(values, fps)`` a clip
     with inertia (the skin lags, overshoots and settles). Options: ``skull`` (the
     chain's, as every engine), ``preserve_volume``, ``skull_contact`` and ``damping`` (1/s) for the
-    tissue (``prepare_tissue``).
+    tissue (``prepare_tissue``), ``proxy`` the skin the volume lies under
+    (``engines.volume.proxy_size``: "auto", "off" or a skin vertex count).
 
     Attributes beyond the ``Engine`` protocol's: ``volume`` (``TissueVolume``), ``model``
     (``TissueModel``), ``muscles`` (a,) the channels with loads, ``forces`` (3N, a) their
@@ -731,13 +732,14 @@ class TissueEngine:
         preserve_volume: bool = True,
         skull_contact: bool = True,
         damping: float = DAMPING_PER_S,
+        proxy: int | str = "auto",
         progress=None,
     ) -> None:
         report = progress or (lambda done, total: None)  # (done, total) of the 3 stages below
         self.rig = rig
         self.channels = rig.channel_names
         report(0, 3)
-        self.volume = build_volume(rig)
+        self.volume = build_volume(rig, proxy=proxy)
         report(1, 3)
         self.model = prepare_tissue(
             self.volume,
@@ -803,8 +805,9 @@ class TissueEngine:
         carry them to (the skin vertex's, for every layer under it; second differences between
         frames, the clip held still before its first and after its last). Rotation of that frame is
         neglected: a frame turns the jaw by a few degrees at most."""
-        rest = self.rig.mesh.vertices[self.volume.surface]
-        weights = self.chain.weights[self.volume.surface]
+        sampling = self.volume.sampling()  # (k, n): where the skin nodes lie on the rig's skin
+        rest = sampling @ self.rig.mesh.vertices
+        weights = sampling @ self.chain.weights
         places = np.stack(
             [linear_blend_skinning(rest, weights, bone_transforms(self.rig, v)) for v in values]
         )  # (f, k, 3) rig units

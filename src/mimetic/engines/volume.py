@@ -20,6 +20,14 @@ facing back at the vertex (the back of a thin lip, the far side of a fold in a s
 tetrahedron reaches through a lip or into an eye, and a scan with holes only has thinner tissue at
 their rims.
 
+**A proxy for dense scans.** The volume's set-up grows with the skin (``MAX_NODES``), so on a skin
+of more than ``PROXY_ABOVE`` vertices the tissue is laid under a decimated copy of it (``mesh.decimate``,
+about ``PROXY_VERTICES`` vertices; ``proxy`` chooses another size or none). Each proxy node reads the
+rig's per-vertex data (thickness, regions, muscle fields, skin weights) where it lies on the skin
+(``sampling``: barycentric on the closest skin triangle facing its way), and every skin vertex follows
+the proxy's motion by barycentric interpolation in its own proxy triangle (``to_vertices``): the
+displacement is carried, so the rest skin keeps all its detail and comes back exactly at rest.
+
 Choices the paper leaves open: the skull nodes are fixed to the bone (``pinned``) except under the
 lips (``FREE_REGIONS``) and at the rims where the depth was cut back to less than ``RIM_DEPTH`` of the
 thickness (the mouth's corners, the lids' edges): no bone lies behind those, and pinning them made
@@ -34,12 +42,14 @@ from functools import cached_property
 from itertools import permutations
 
 import numpy as np
+import scipy.sparse as sp
 import trimesh
 from scipy.spatial import cKDTree
 
 from mimetic.errors import MimeticError
+from mimetic.mesh.decimate import Embedding, decimate, embed
 from mimetic.mesh.geometry import vertex_normals
-from mimetic.mesh.weld import find_weld
+from mimetic.mesh.weld import Weld, find_weld
 from mimetic.rig.anatomy.derive import SKIN_PARTS, cavity_links, skin_vertices, tissue_normals
 from mimetic.rig.model import Rig
 
@@ -60,7 +70,28 @@ FACING = 0.3
 MAX_NODES = 300_000
 """Most nodes of a volume (three per skin vertex). Setup grows with them: 258,834 nodes (a generated
 head of 95,000 skin vertices) took 59 s and 4.4 GiB for ``fem``, then 67 s and a peak of 10.2 GiB
-with ``tissue`` beside it; a bigger scan is decimated first."""
+with ``tissue`` beside it; a denser skin takes a proxy (``PROXY_ABOVE``)."""
+PROXY_ABOVE = 30_000
+"""A skin of more welded vertices than this gets a proxy by default (``proxy="auto"``): the default
+head's (9,617) and ICT-FaceKit's (19,167) stay at full resolution, a phone or photogrammetry scan's
+(0.5-5 M vertices) does not."""
+PROXY_VERTICES = 20_000
+"""Skin vertices of the automatic proxy: a volume of 60,000 nodes, a little more than ICT-FaceKit's
+full skin, so the lips, lids and nasolabial folds keep several proxy triangles across them, at a fifth
+of the largest volume ``MAX_NODES`` allows: ICT subdivided twice (300,177 skin vertices) poses in
+1.8 GiB (fem) and 2.2 GiB (tissue), a quarter of the 8 GiB a 420k-vertex scan may take
+(``benchmarks/bench_proxy.py``)."""
+SLIVER_QUALITY = 1e-3
+"""Proxy triangles of a quality (``4√3 area / Σ edge²``, 1 for an equilateral one) or an area (over
+the median's) below this are left out: they hold no tissue, and their flat prisms have no stiffness
+to invert. Quadric collapse on a flat patch (a subdivided scan: its midpoints lie exactly on the old
+edges) leaves such slivers and specks (three vertices within 1e-7 cm): 958 of 39,720 triangles of
+ICT-FaceKit subdivided twice, decimated to 20,000 vertices."""
+MIN_PROXY = 500
+EMBED_CHUNK = 200_000
+"""Skin vertices tied to the proxy at a time: the closest-triangle search holds its candidates for a
+chunk (about 1 KiB per vertex), so a 5 M-vertex scan does not hold them all at once."""
+"""The smallest proxy asked for by size: fewer skin vertices leave no tissue across the lips."""
 NEIGHBOURS = 12
 """Nearest mesh vertices checked around a skull node (``_depths``)."""
 MIN_THICKNESS_REL = 0.008
@@ -117,9 +148,16 @@ class TissueVolume:
         Rig vertices of the mouth's lining that follow the tissue (``cavity_links``): the lining has
         no tissue of its own (its triangles need not be mirror-symmetric where the head is).
     cavity_source : (m,) int64
-        The skin node each follows.
+        The rig vertex (on the tissue) each follows.
     cavity_fall : (m,) float64
-        How much of that node's motion each takes.
+        How much of that vertex's motion each takes.
+    proxy_nodes : Embedding or None
+        With a proxy (module docstring): each skin node tied to the rig's skin triangles, where it
+        reads the rig's per-vertex data (``sampling``); ``surface`` is then each node's nearest
+        corner there, and ``index`` each rig vertex's nearest corner of its proxy triangle.
+    proxy_skin : Embedding or None
+        With a proxy: the rig vertices on the tissue (``index >= 0``, in order) tied to the proxy's
+        triangles, by which they follow its motion (``to_vertices``).
     """
 
     nodes: np.ndarray
@@ -134,9 +172,13 @@ class TissueVolume:
     cavity: np.ndarray
     cavity_source: np.ndarray
     cavity_fall: np.ndarray
+    proxy_nodes: Embedding | None = None
+    proxy_skin: Embedding | None = None
 
     def __post_init__(self) -> None:
         for name in self.__dataclass_fields__:
+            if name.startswith("proxy_"):
+                continue
             array = np.array(getattr(self, name), copy=True)
             array.setflags(write=False)
             object.__setattr__(self, name, array)
@@ -173,14 +215,32 @@ class TissueVolume:
         )
         return np.bincount(prisms.ravel(), np.repeat(volumes / 6.0, 6), self.n_nodes)
 
+    @property
+    def is_proxy(self) -> bool:
+        """True when the tissue lies under a decimated copy of the skin (module docstring)."""
+        return self.proxy_skin is not None
+
+    def sampling(self) -> sp.csr_matrix:
+        """The (k, n) matrix that reads per-rig-vertex values at the skin nodes: ``sampling() @
+        values``; at full resolution it picks each node's vertex (``surface``)."""
+        if self.proxy_nodes is not None:
+            return self.proxy_nodes.matrix()
+        k, n = self.n_skin, len(self.index)
+        return sp.csr_matrix((np.ones(k), (np.arange(k), self.surface)), shape=(k, n))
+
     def to_vertices(self, node_values: np.ndarray) -> np.ndarray:
-        """Per-vertex values (n, ...) from skin-node values (k, ...): the mouth's lining follows the
-        skin (``cavity``), other vertices off the tissue (eyes, teeth, ears) get 0."""
+        """Per-vertex values (n, ...) from skin-node values (k, ...): each skin vertex its node's (with
+        a proxy: interpolated in its proxy triangle), the mouth's lining follows the skin
+        (``cavity``), other vertices off the tissue (eyes, teeth, ears) get 0."""
         out = np.zeros((len(self.index), *node_values.shape[1:]))
         inside = self.index >= 0
-        out[inside] = node_values[self.index[inside]]
+        if self.proxy_skin is not None:
+            flat = node_values.reshape(len(node_values), -1)
+            out[inside] = (self.proxy_skin.matrix() @ flat).reshape(-1, *node_values.shape[1:])
+        else:
+            out[inside] = node_values[self.index[inside]]
         fall = self.cavity_fall.reshape((-1,) + (1,) * (node_values.ndim - 1))
-        out[self.cavity] = node_values[self.cavity_source] * fall
+        out[self.cavity] = out[self.cavity_source] * fall
         return out
 
 
@@ -270,11 +330,89 @@ def _depths(
     return depth
 
 
-def build_volume(rig: Rig) -> TissueVolume:
-    """The layered tissue volume (``TissueVolume``) under ``rig``'s skin (module docstring).
+def proxy_size(n_skin: int, proxy: int | str = "auto") -> int | None:
+    """The proxy's skin vertex count for a skin of ``n_skin`` welded vertices, or None for the full
+    skin: ``proxy`` "auto" (``PROXY_VERTICES`` above ``PROXY_ABOVE``), "off", or a count (at least
+    ``MIN_PROXY``; a skin no larger keeps its full resolution).
 
-    Raises ``MimeticError`` when the rig has no skin triangles or more than ``MAX_NODES // 3`` skin
-    vertices.
+    Raises ``MimeticError`` for any other value, and when the volume would be over ``MAX_NODES``.
+    """
+    if isinstance(proxy, str) and proxy.strip().lower() in ("auto", "off"):
+        size = PROXY_VERTICES if proxy.strip().lower() == "auto" and n_skin > PROXY_ABOVE else None
+    elif isinstance(proxy, (int, np.integer)) and not isinstance(proxy, bool) and proxy >= MIN_PROXY:
+        size = int(proxy) if n_skin > proxy else None
+    else:
+        raise MimeticError(
+            f"proxy={proxy!r}: say 'auto' (a proxy of {PROXY_VERTICES:,} skin vertices above "
+            f"{PROXY_ABOVE:,}), 'off' (the full skin), or a skin vertex count of at least {MIN_PROXY:,}"
+        )
+    k = n_skin if size is None else size
+    if 3 * k > MAX_NODES:
+        what = f"the rig's skin has {n_skin:,} vertices" if size is None else f"a proxy of {size:,} vertices"
+        raise MimeticError(
+            f"{what}, a tissue volume of {3 * k:,} nodes; the physical engines (fem, tissue) take at "
+            f"most {MAX_NODES:,} nodes ({MAX_NODES // 3:,} skin vertices), their memory and time grow "
+            f"with it. Simulate through a smaller proxy (the engine option proxy='auto', or a count up "
+            f"to {MAX_NODES // 3:,}; `--proxy auto` on the command line), or use the wire or vector engine"
+        )
+    return size
+
+
+def solid_triangles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Which triangles ``faces`` (q, 3) of ``vertices`` (p, 3) can hold tissue (q,) bool: not a flat
+    sliver nor a speck (``SLIVER_QUALITY``)."""
+    corners = vertices[faces]  # (q, 3, 3)
+    area = 0.5 * np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+    squared = (np.diff(corners, axis=1, append=corners[:, :1]) ** 2).sum(axis=(1, 2))  # Σ edge²
+    return (4 * np.sqrt(3) * area > SLIVER_QUALITY * squared) & (area > SLIVER_QUALITY * np.median(area))
+
+
+def _proxy_surface(
+    rig: Rig, weld: Weld, used: np.ndarray, faces: np.ndarray, size: int
+) -> tuple[np.ndarray, np.ndarray, Embedding, Embedding]:
+    """A decimated copy (about ``size`` vertices) of the welded skin ``faces`` (m, 3) over the welded
+    vertices ``used`` (k,): its vertices (p, 3), triangles (q, 3), the ``Embedding`` of its vertices
+    on the rig's skin triangles (where they read the rig's data) and that of the rig's vertices on
+    the tissue, in order, in its triangles (how they follow it), both with the normal test
+    (``mesh.decimate.embed``: a lip's vertex stays with its own lip)."""
+    node_of = np.full(len(weld.mesh.vertices), -1, dtype=np.int64)
+    node_of[used] = np.arange(len(used))
+    dense, dense_faces = weld.mesh.vertices[used], node_of[faces]
+    proxy_v, proxy_f = decimate(dense, dense_faces, size)
+    proxy_f = proxy_f[solid_triangles(proxy_v, proxy_f)]
+    kept, proxy_f = np.unique(proxy_f, return_inverse=True)  # drop any vertex left without a triangle
+    proxy_v, proxy_f = proxy_v[kept], proxy_f.reshape(-1, 3)
+    of_vertex = node_of[weld.index]  # (n,) each rig vertex's welded skin vertex, -1 off the tissue
+    inside = np.flatnonzero(of_vertex >= 0)
+    mesh_parts = [rig.mesh.parts[p] for p in SKIN_PARTS if p in rig.mesh.parts]
+    rig_faces = rig.mesh.faces[np.concatenate(mesh_parts)] if mesh_parts else rig.mesh.faces
+    rig_faces = rig_faces[(of_vertex[rig_faces] >= 0).all(axis=1)]  # the skin's own triangles
+    nodes = embed(proxy_v, rig.mesh.vertices, rig_faces, normals=vertex_normals(proxy_v, proxy_f))
+    normals = vertex_normals(dense, dense_faces)[of_vertex[inside]]
+    parts = [
+        embed(
+            rig.mesh.vertices[inside[i : i + EMBED_CHUNK]],
+            proxy_v,
+            proxy_f,
+            normals=normals[i : i + EMBED_CHUNK],
+        )
+        for i in range(0, len(inside), EMBED_CHUNK)
+    ]
+    skin = Embedding(
+        *(np.concatenate([getattr(p, name) for p in parts]) for name in ("triangles", "bary", "offset")),
+        len(proxy_v),
+    )
+    return proxy_v, proxy_f, nodes, skin
+
+
+def build_volume(rig: Rig, *, proxy: int | str = "auto") -> TissueVolume:
+    """The layered tissue volume (``TissueVolume``) under ``rig``'s skin (module docstring); under a
+    decimated copy of it as ``proxy_size(skin vertices, proxy)`` says.
+
+    Raises ``MimeticError`` when the rig has no skin triangles, or (``proxy_size``) for a volume over
+    ``MAX_NODES`` nodes or a bad ``proxy``.
     """
     weld = find_weld(rig.mesh)
     welded = weld.mesh
@@ -288,23 +426,35 @@ def build_volume(rig: Rig) -> TissueVolume:
     if not len(faces):
         raise MimeticError("the rig has no skin triangles to lay tissue under; rebuild it with `mimetic rig`")
     used = np.unique(faces)
-    k = len(used)
-    if 3 * k > MAX_NODES:
-        raise MimeticError(
-            f"the rig's skin has {k:,} vertices, a tissue volume of {3 * k:,} nodes; the physical engines "
-            f"(fem, tissue) take at most {MAX_NODES:,} nodes ({MAX_NODES // 3:,} skin vertices), their "
-            "memory and time grow with it. Decimate the mesh before `mimetic rig` (trimesh's "
-            "simplify_quadric_decimation, Blender's Decimate modifier), or use the wire or vector engine"
-        )
+    size = proxy_size(len(used), proxy)
     node_of = np.full(len(welded.vertices), -1, dtype=np.int64)
-    node_of[used] = np.arange(k)
-    tri = node_of[faces]  # (m, 3) skin-node triangles
-    no_contact = np.zeros((0, 2), dtype=np.int64)  # each lip's tissue lies behind its own skin
-    normals = tissue_normals(welded.vertices, faces, no_contact, rig.scale)[used]
-    skin = welded.vertices[used]
+    node_of[used] = np.arange(len(used))
+    # 1. the skin surface the tissue lies under: the welded skin, or its proxy
     thickness_rel = np.zeros(len(welded.vertices))
     thickness_rel[weld.index] = rig.anatomy.thickness_rel
-    thickness = np.maximum(thickness_rel[used], MIN_THICKNESS_REL) * rig.scale
+    free_rel = np.zeros(len(welded.vertices), dtype=bool)  # under the lips: no bone
+    for name in FREE_REGIONS:
+        free_rel[weld.index[rig.regions.get(name, np.zeros(0, np.int64))]] = True
+    if size is None:
+        proxy_nodes = proxy_skin = None
+        skin, tri, surface = welded.vertices[used], node_of[faces], weld.first[used]
+        thickness_rel, free_rel = thickness_rel[used], free_rel[used]
+        index = node_of[weld.index]
+    else:
+        skin, tri, proxy_nodes, proxy_skin = _proxy_surface(rig, weld, used, faces, size)
+        sampling = proxy_nodes.matrix()  # (p, n) rig vertices -> proxy nodes
+        surface = proxy_nodes.triangles[np.arange(len(skin)), np.argmax(proxy_nodes.bary, axis=1)]
+        thickness_rel = sampling @ thickness_rel[weld.index]
+        free_rel = free_rel[weld.index[surface]]
+        index = np.full(rig.n_vertices, -1, dtype=np.int64)
+        index[node_of[weld.index] >= 0] = proxy_skin.triangles[
+            np.arange(len(proxy_skin.triangles)), np.argmax(proxy_skin.bary, axis=1)
+        ]
+    k = len(skin)
+    # 2. the depth under each skin node: its thickness, cut back clear of the other surfaces
+    no_contact = np.zeros((0, 2), dtype=np.int64)  # each lip's tissue lies behind its own skin
+    normals = tissue_normals(skin, tri, no_contact, rig.scale)
+    thickness = np.maximum(thickness_rel, MIN_THICKNESS_REL) * rig.scale
     deformable = (
         welded.faces[np.concatenate([parts[p] for p in SKIN_PARTS if p in parts])] if parts else faces
     )
@@ -315,7 +465,7 @@ def build_volume(rig: Rig) -> TissueVolume:
     if len(rigid_faces):
         kept, compact = np.unique(rigid_faces, return_inverse=True)
         rigid = trimesh.Trimesh(welded.vertices[kept], compact.reshape(-1, 3), process=False)
-    surface = np.flatnonzero(on_surface)
+    samples = np.flatnonzero(on_surface)
     lining = np.ones(len(welded.vertices), dtype=bool)
     lining[used] = False
     depth = _depths(
@@ -323,10 +473,11 @@ def build_volume(rig: Rig) -> TissueVolume:
         normals,
         thickness,
         rigid,
-        welded.vertices[surface],
-        vertex_normals(welded.vertices, faces)[surface],
-        lining[surface],
+        welded.vertices[samples],
+        vertex_normals(welded.vertices, faces)[samples],
+        lining[samples],
     )
+    # 3. the layers, their prisms' tetrahedra and the pinned skull nodes
     fascia = skin - (FASCIA_DEPTH * depth)[:, None] * normals
     skull = skin - depth[:, None] * normals
     ids = np.arange(k)
@@ -337,16 +488,26 @@ def build_volume(rig: Rig) -> TissueVolume:
         raise MimeticError("the tissue volume has non-finite nodes; check the rig's mesh for NaN vertices")
     negative = tet_volumes(nodes, tets) < 0
     tets[negative] = tets[negative][:, [0, 2, 1, 3]]
-    free = depth < RIM_DEPTH * thickness  # a rim: cut back by an opening, no bone behind it
-    for name in FREE_REGIONS:
-        ids_in = node_of[np.unique(weld.index[rig.regions.get(name, np.zeros(0, np.int64))])]
-        free[ids_in[ids_in >= 0]] = True
+    free = (depth < RIM_DEPTH * thickness) | free_rel  # a rim cut back by an opening, or the lips
     pinned = np.concatenate([np.zeros(2 * k, dtype=bool), ~free])
-    index = node_of[weld.index]
-    cavity = np.intersect1d(np.flatnonzero(index < 0), skin_vertices(rig.mesh))  # the mouth's lining
+    # 4. the mouth's lining follows the skin it continues
+    cavity = np.intersect1d(np.flatnonzero(index < 0), skin_vertices(rig.mesh))
     mesh_parts = [rig.mesh.parts[p] for p in SKIN_PARTS if p in rig.mesh.parts]
     unwelded = rig.mesh.faces[np.concatenate(mesh_parts)] if mesh_parts else rig.mesh.faces  # the rig's own
     follow, source, fall = cavity_links(rig.mesh.vertices, unwelded, cavity, LINING_REACH_REL * rig.scale)
     return TissueVolume(
-        nodes, weld.first[used], index, tri, tets, layer, pinned, normals, depth, follow, index[source], fall
+        nodes,
+        surface,
+        index,
+        tri,
+        tets,
+        layer,
+        pinned,
+        normals,
+        depth,
+        follow,
+        source,
+        fall,
+        proxy_nodes,
+        proxy_skin,
     )

@@ -92,28 +92,27 @@ def embed(
     vertices: np.ndarray,
     faces: np.ndarray,
     *,
-    candidates: int = CANDIDATES,
     normals: np.ndarray | None = None,
+    candidates: int = CANDIDATES,
 ) -> Embedding:
-    """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``,
-    among the ``candidates`` triangles whose centroids lie nearest (``mesh.closest``: fewer is faster,
-    and enough for points that lie on the proxy's surface, as a dense mesh's vertices do).
+    """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``.
 
-    With ``normals`` (n, 3) (unit, the points' own surface normals) a point takes the closest
-    triangle facing its way (so a vertex under the upper lip never ties to the lower lip touching
-    it), or the closest of any when none of its candidates does."""
+    With ``normals`` (n, 3) (the points' unit normals) a point takes the closest triangle that faces
+    its way (``closest_points``' normal test), so where two sheets of a surface nearly touch (the
+    lips, a fold) a point is not tied to the other sheet; a point no such triangle faces takes the
+    closest of all. ``candidates``: the triangles, nearest by centroid, each point looks among
+    (``mesh.closest``; fewer is faster, and enough for points on the proxy's surface, as a dense
+    mesh's own vertices are).
+    """
     points = np.asarray(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    if normals is None:
-        found = closest_points(vertices, faces, points, candidates=candidates)
-    else:
-        found = closest_points(vertices, faces, points, query_normals=normals, candidates=candidates)
-        lost = found.faces < 0
-        if lost.any():
-            rescue = closest_points(vertices, faces, points[lost], candidates=candidates)
-            for field in ("points", "faces", "bary"):
-                getattr(found, field)[lost] = getattr(rescue, field)
+    found = closest_points(vertices, faces, points, query_normals=normals, candidates=candidates)
+    if normals is not None and np.any(found.faces < 0):  # facing no triangle: the closest of all
+        lost = np.flatnonzero(found.faces < 0)
+        anyway = closest_points(vertices, faces, points[lost], candidates=candidates)
+        for name in ("points", "faces", "bary", "distance"):
+            getattr(found, name)[lost] = getattr(anyway, name)
     if np.any(found.faces < 0):
         raise ValueError("some points found no proxy triangle")
     triangles = faces[found.faces]

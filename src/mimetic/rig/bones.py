@@ -31,6 +31,7 @@ from mimetic.head.model import Head
 from mimetic.head.shape import smoothstep
 from mimetic.head.topology import build_topology
 from mimetic.mesh.geometry import smooth_field
+from mimetic.mesh.openings import margin_distance
 from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL, closing_weights
 from mimetic.rig.model import Bone
 
@@ -40,7 +41,12 @@ CHIN_CORE_REL = 0.1
 NECK_FREE_REL = 0.12
 """Skin this far below the menton (× head height, 2.7 cm) stays with the head: on ICT's captured
 jawOpen the skin 2.4-6.4 cm below the menton follows the jaw 0.04 (0.25 gave it 0.59); fitted on
-ICT's neutral, checked on its identities (benchmarks/bench_weights.py)."""
+ICT's neutral, checked on its identities (benchmarks/bench_weights.py). Neck skin nearer the chin
+than ``CHIN_CORE_REL`` along the skin stays free all the same: on a head whose chin hangs low over
+the neck (ICT's σ 2-3 identities) the chin's weight 1 would otherwise meet the neck's 0 within an
+edge or two, and a jaw drop would tear the skin under the chin there. (A ramp of
+``HARMONIC_LENGTH_REL`` mends one more check head, s102 σ2, but lets ICT's neck follow the jaw
+0.11 where its captured jawOpen says 0.04.)"""
 HARMONIC_LENGTH_REL = 0.15
 """Diffusion length (× head height) of the jaw weight between the jaw's and the skull's skin."""
 CORNER_JAW = 0.5
@@ -126,21 +132,22 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     still = [regions[r] for r in ("nose", "forehead", "scalp") if r in regions]
     still += [regions[f"{r}_{s}"] for r in ("eyelid_upper", "eyelid_lower", "brow") for s in "LR"]
     skin = head.mesh.part_vertices("skin")
-    above = skin[
-        (v[skin, 1] > alar[1]) | (v[skin, 2] < tragion[2]) | (v[skin, 1] < menton[1] - NECK_FREE_REL * scale)
-    ]
-    for ids in (*still, above, upper):
-        fixed[ids] = True
     core = skin[
         (np.linalg.norm(v[skin] - pogonion, axis=1) < CHIN_CORE_REL * scale)
         & (v[skin, 1] < stomion[1])
         & (v[skin, 2] > menton[2])  # the chin's front, not the skin under it
     ]
+    skin_faces = head.mesh.faces[head.mesh.parts["skin"]]
+    ramp = CHIN_CORE_REL * scale
+    near_chin = margin_distance(v, skin_faces, np.union1d(regions["chin"], core), ramp)[skin] < ramp
+    neck = (v[skin, 1] < menton[1] - NECK_FREE_REL * scale) & ~near_chin
+    above = skin[(v[skin, 1] > alar[1]) | (v[skin, 2] < tragion[2]) | neck]
+    for ids in (*still, above, upper):
+        fixed[ids] = True
     for ids in (regions["chin"], core, lower):
         fixed[ids], value[ids] = True, 1.0
     value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(CORNER_CORE, LOWER_LIP_REACH, reach[lower]))
     value[upper] = CORNER_JAW * (1.0 - smoothstep(CORNER_CORE, UPPER_LIP_REACH, reach[upper]))
-    skin_faces = head.mesh.faces[head.mesh.parts["skin"]]
     free = np.zeros(n, dtype=bool)
     free[skin] = ~fixed[skin]
     harmonic = smooth_field(value, v, skin_faces, HARMONIC_LENGTH_REL * scale, free=free)

@@ -49,8 +49,8 @@ class SolveOptions(DeliverOptions):
     neutral_frame: int = option(0, "A frame with a neutral face.", minimum=0)
     channels: str = option(
         "all",
-        "Channels to solve: all (every channel the markers see but the gaze), determined (those the "
-        "markers pin down at 1 mm noise) or a comma-separated list.",
+        "Channels to solve: all (every channel the markers see but the gaze and the nose's small "
+        "muscles), determined (those the markers pin down at 1 mm noise) or a comma-separated list.",
     )
     cutoff: float = option(CUTOFF_HZ, "Smoothing cutoff in Hz (0: none).", minimum=0.0)
     report: bool = option(True, "Write the plausibility report, NAME.report.json, beside the clip.")

@@ -33,8 +33,9 @@ to prepare and pose, are shown too: their muscle and expression sheets (``muscle
 tissue engine (``jaw_drop_tissue.mp4``: the lips and cheeks lag the jaw and settle); and the
 animation as FBX beside its GLB (``animation.fbx``, through Blender, installed on first use; a
 note says why when it cannot be). Real scanned heads (ICT-FaceKit, from the shared test data) are
-rigged by ``examples/real_heads.py``, which ``make demo-all`` runs after this; the library itself
-knows no particular head.
+rigged by ``examples/real_heads.py``, which ``make demo-all`` runs after this (with a dense one,
+ICT subdivided, posed by the tissue engine through its proxy); the library itself knows no
+particular head.
 """
 
 from __future__ import annotations

@@ -114,3 +114,14 @@ def key_spec(spec: str) -> tuple[str, float, float]:
 def key_specs(items: Iterable[str]) -> tuple[tuple[str, float, float], ...]:
     """``--key`` items → ((channel, time_s, value), ...)."""
     return tuple(key_spec(item) for item in items)
+
+
+def proxy_spec(item: str | int) -> str | int:
+    """``auto``, ``off`` or a skin vertex count (``20000``) → "auto", "off" or the count: the physical
+    engines' proxy (``engines.volume.proxy_size`` checks the count's range)."""
+    text = str(item).strip().lower().replace("_", "")
+    if text in ("auto", "off"):
+        return text
+    if not text.isdigit():
+        raise ValueError(f"{item!r}: expected auto, off or a skin vertex count, e.g. 20000")
+    return int(text)

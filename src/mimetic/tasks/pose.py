@@ -11,7 +11,7 @@ import numpy as np
 from mimetic.engines import ENGINES
 from mimetic.tasks.base import Progress, Result, Task, TaskOptions, announce, check_output, option, stage
 from mimetic.tasks.outputs import IMAGES, MESHES
-from mimetic.tasks.parsing import channel_values, weights
+from mimetic.tasks.parsing import channel_values, proxy_spec, weights
 from mimetic.tasks.render import SHEET_VIEWS
 
 SOURCE_FRAME = (".obj", ".ply", ".stl")
@@ -39,6 +39,13 @@ class PoseOptions(TaskOptions):
         cli_type=list[str],
     )
     engine: str = option("wire", "Deformation engine.", choices=ENGINES)
+    proxy: str | int = option(
+        "auto",
+        "fem and tissue: simulate on a decimated skin of N vertices (auto: 20000 above 30000), or off.",
+        metavar="auto|off|N",
+        parse=proxy_spec,
+        cli_type=str,
+    )
     view: str = option("front", "For images: one view, or all three in a sheet.", choices=SHEET_VIEWS)
     size: int = option(512, "Image size in pixels (per view).", minimum=64, maximum=4096)
     intensity: float = option(1.0, "Scale the whole expression blend.")
@@ -71,7 +78,9 @@ def run(
     )
     if deform is None:
         announce(progress, f"prepare {options.engine}")  # at once: fem and tissue take seconds
-        engine = prepared.engine(options.engine, stage(progress, f"prepare {options.engine}"))
+        engine = prepared.engine(
+            options.engine, stage(progress, f"prepare {options.engine}"), proxy=options.proxy
+        )
         deform = engine.deform
     announce(progress, "pose")
     vertices = deform(pose)

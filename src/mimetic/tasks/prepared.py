@@ -25,6 +25,8 @@ if TYPE_CHECKING:
 CAPTURE_BAKE = {"correctives": 0, "samples": 2}
 """How a capture solve bakes its rig: linear (the solve is linear least squares), checked on 2 poses."""
 
+PHYSICAL = ("fem", "tissue")
+"""The engines that take a ``proxy`` option (the others work on the rig's vertices directly)."""
 RIGS_KEPT = 2
 """Rig files kept prepared per process (a batch worker alternates between few rigs)."""
 
@@ -43,11 +45,18 @@ class Prepared:
                 self._made[key] = make()
             return self._made[key]
 
-    def engine(self, name: str, progress: Callable[[int, int], None] | None = None) -> Engine:
-        """The engine ``name`` of this rig (``make_engine``); ``progress(done, total)`` while it is made."""
+    def engine(
+        self, name: str, progress: Callable[[int, int], None] | None = None, *, proxy: str | int = "auto"
+    ) -> Engine:
+        """The engine ``name`` of this rig (``make_engine``); ``progress(done, total)`` while it is made;
+        ``proxy`` the physical engines' (fem, tissue: ``engines.volume.proxy_size``)."""
         from mimetic.engines import make_engine
 
-        return self._once(("engine", name), lambda: make_engine(self.rig, name, progress=progress))
+        if name not in PHYSICAL:
+            return self._once(("engine", name), lambda: make_engine(self.rig, name, progress=progress))
+        return self._once(
+            ("engine", name, proxy), lambda: make_engine(self.rig, name, progress=progress, proxy=proxy)
+        )
 
     def basis(
         self,

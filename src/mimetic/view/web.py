@@ -39,10 +39,10 @@ from mimetic.errors import MimeticError, MissingExtraError
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf")
 GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("Brows and eyes", ("frontalis", "corrugator", "procerus", "orbicularis_oculi", "levator_palpebrae",
-                        "eyelid")),
+    ("Brows and eyes", ("frontalis", "corrugator", "depressor_supercilii", "procerus", "orbicularis_oculi",
+                        "levator_palpebrae", "eyelid")),
     ("Cheeks and nose", ("zygomatic", "levator_labii", "risorius", "buccinator", "cheek_puff", "nasalis",
-                         "dilator_naris")),
+                         "dilator_naris", "depressor_septi")),
     ("Mouth", ("orbicularis_oris", "triangularis", "depressor", "mentalis", "platysma", "mouth_")),
     ("Jaw", ("jaw_",)),
     ("Gaze", ("gaze_",)),

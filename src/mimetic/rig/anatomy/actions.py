@@ -5,9 +5,11 @@ is tissue moving as a sheet or a mass instead (the automated-rigging thesis's §
 muscle catalogue): the frontalis lifts the whole forehead, the corrugator and procerus gather the
 brows, the orbital orbicularis oculi lifts the cheek toward the eye (AU6), a smile piles the malar
 fat up, air pressure puffs the cheeks, the marginal orbicularis oris rolls the lips in and its
-peripheral part pushes them out into a funnel, the lips slide sideways together, the nasalis and
-the dilator naris move the nose's wing, the levator of the nose wrinkles and lifts its side, and
-the tongue pokes out, lifts its tip or draws back.
+peripheral part pushes them out into a funnel, the lips slide sideways together, the nasalis draws
+the side of the nose up, the levator of the nose wrinkles and lifts its side, and the tongue pokes
+out, lifts its tip or draws back. The small muscles of the brow's head and of the nose's tip, wing
+and side move fields sized by their feature instead of the head (``local``); ``find_actions`` builds
+both kinds.
 
 Each is an ``Action``: a displacement field over the rest surface, linear in one channel and added
 before skinning (as the creases are), so it bakes exactly and follows the jaw it rides on. Two
@@ -35,6 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from mimetic.rig.anatomy.creases import Crease
+from mimetic.rig.anatomy.local import CHANNELS as LOCAL_CHANNELS
+from mimetic.rig.anatomy.local import LOCAL_BUMPS, local_actions
 
 Action = Crease
 """An action is stored as a crease is: channel gains, vertices and offsets at full activation."""
@@ -215,17 +219,8 @@ BUMPS: tuple[Bump, ...] = (
         0.0045,
         mass=True,
     ),
+    # no captured shape: the side of the nose above the wing drawn up and in (the sneer's nasal part)
     Bump("nasalis", "nasalis", "alare", (-0.02, 0.04, 0.0), (0.035, 0.04, 0.04), (-0.006, 0.008, 0.0), 0.0),
-    # no captured shape: the nostril flares (~2 mm)
-    Bump(
-        "dilator_naris",
-        "dilator_naris",
-        "alare",
-        (0.0, 0.0, 0.0),
-        (0.03, 0.03, 0.03),
-        (0.01, 0.0, 0.0),
-        0.004,
-    ),
     # the lips: sideways together, pushed out into a funnel, protruded in a pucker
     # mouthLeft / mouthRight: the lips and corners slide sideways together
     Bump(
@@ -409,8 +404,8 @@ CHANNELS: dict[str, tuple[str, str]] = {
         for name, group, doc in (
             ("cheek_puff", "cheeks", "air pressure puffs the cheek out against the relaxed buccinator"),
             ("mouth_slide", "mouth", "the lips and modiolus slide together toward this side"),
-            ("nasalis", "nose", "the transverse nasalis wrinkles the side of the nose and draws it up"),
-            ("dilator_naris", "nose", "the alar nasalis flares the nostril"),
+            ("nasalis", "nose", "the nasalis draws the side of the nose above the wing up and in (a sneer)"),
+            ("dilator_naris", "nose", "the dilator naris flares the whole nostril wing outward (AU38)"),
         )
     },
     "orbicularis_oris_marginalis_upper": ("mouth", "the marginal orbicularis oris rolls the upper lip in"),
@@ -422,6 +417,7 @@ CHANNELS: dict[str, tuple[str, str]] = {
     "tongue_out": ("tongue", "the genioglossus pushes the tongue out between the teeth"),
     "tongue_tip_up": ("tongue", "the superior longitudinal muscle lifts the tip toward the alveolar ridge"),
     "tongue_back": ("tongue", "the styloglossus draws the tongue back and up toward the soft palate"),
+    **LOCAL_CHANNELS,
 }
 """The channels only tissue actions drive: name -> (group, what it does). All run 0..1."""
 
@@ -437,7 +433,8 @@ def find_actions(
     channel_names: Iterable[str],
     scale: float,
 ) -> tuple[Action, ...]:
-    """Every tissue action of a rig: ``BUMPS``, ``ROLLS`` and the tongue's, for the channels it has.
+    """Every tissue action of a rig: ``BUMPS``, ``ROLLS``, the feature-local ``local.LOCAL_BUMPS`` and
+    the tongue's, for the channels it has.
 
     ``vertices``/``normals`` (n, 3) are the rest mesh (rig units); ``skin`` (s,) the vertices the
     face's tissue actions may move, ``tongue`` (t,) the tongue's (may be empty); ``scale`` the head
@@ -458,5 +455,7 @@ def find_actions(
         out += bump_actions(surface, bump, channels)
     for roll in ROLLS:
         out += roll_actions(surface, roll, channels)
+    for local in LOCAL_BUMPS:
+        out += local_actions(surface, local, channels)
     out += tongue_actions(surface, tongue, channels)
     return tuple(a for a in out if len(a.vertices))
