@@ -1,4 +1,4 @@
-"""Peak memory and time of every stage of ``mimetic rig`` (then bake and GLB export), up to 1.7M vertices.
+"""Peak memory and time of every stage of ``mimetic rig``, then bake and GLB/USD export, up to 1.7M vertices.
 
     python benchmarks/bench_memory.py [--quick] [--bound-gib 8] [--keep DIR]
 
@@ -11,24 +11,35 @@ they were and every size is the same surface. Four subdivisions would give 6.7M 
 Each stage runs in a fresh interpreter (``mimetic.testing.memory.peak_rss``: the child's own
 high-water mark, ``VmHWM``) that reads the stage's inputs from the files the stage before it wrote,
 so its peak includes holding them, as ``mimetic rig``'s one process holds them; the time is the
-stage's work only (not the imports or the reading). The stages, as ``fit.pipeline.rig_mesh`` calls
-them:
+stage's work only (not the imports or the reading). The stages, as ``fit.pipeline.rig_head`` runs
+them (above ``fit.working.WORKING_THRESHOLD`` vertices through a working copy; at or below it the
+working-copy and carry stages do not run, "rigged directly"):
 
 1. load + validate: ``load_mesh`` of a binary PLY, ``validate_mesh``;
-2. weld: ``find_weld``, ``seam_vertices``, ``winding_flips``;
-3. landmarks: ``auto_landmarks`` (MediaPipe on renders); the fit takes ICT's landmark file instead;
-4. fit: ``fit_reference`` (similarity, conformation, registration) and ``fit_report``;
-5. transfer: ``build_rig`` of the fitted reference, ``transfer_rig`` (correspondence, skin weights,
+2. weld: ``find_weld``;
+3. working copy: ``working_copy`` (each piece decimated, every vertex embedded in its piece's copy);
+4. landmarks: ``auto_landmarks`` (MediaPipe on renders of the working copy, or of the mesh); the
+   fit takes ICT's landmark file instead;
+5. fit: ``fit_reference`` (similarity, conformation, registration) and ``fit_report`` on the copy
+   (or the welded mesh);
+6. transfer: ``build_rig`` of the fitted reference, ``transfer_rig`` (correspondence, skin weights,
    regions, wires), ``unweld_rig``;
-6. save: ``save_rig`` (.mrig);
-7. bake: ``load_rig``, the wire engine, ``bake`` (a linear basis with its correctives);
-8. export: ``load_rig``, ``export_glb`` (mesh, bones and skin weights; no morph targets).
+7. carry: ``carry_rig``, the copy's rig on every vertex of the mesh;
+8. save: ``save_rig`` (.mrig);
+9. bake: ``load_rig``, the wire engine, ``bake`` (a linear basis with its 24 correctives);
+10. export GLB: ``load_rig`` and the baked deltas, ``morph_targets_from_basis``, ``export_glb``
+    (mesh, bones, skin weights and one morph target per muscle channel, with normals);
+11. export USD: the same with ``export_usd`` (.usdc, UsdSkel blend shapes).
+
+Besides, "rig_mesh end to end": ``rig_mesh`` of the PLY with landmarks found by MediaPipe, in
+one process, as ``mimetic rig`` runs it (without writing the .mrig, stage 8).
 
 Each child's virtual memory is capped at the bound plus ``HEADROOM_GIB`` (``RLIMIT_AS``), so a
 stage that blows up fails alone; a stage whose peak passes the bound, or that fails at the cap, is
 "over bound". Baseline, in the same run: a child that only holds the input mesh's arrays (numpy
 imported, the vertices and faces read from .npy). Growth is the log-log slope between the two
-largest sizes (1: linear in the vertex count).
+largest sizes (1: linear in the vertex count; 0: a stage whose work does not grow, as on a working
+copy of fixed size).
 """
 
 from __future__ import annotations
@@ -86,80 +97,130 @@ assert not validate_mesh(mesh).errors
 dump(mesh, "mesh.pkl")
 """,
     "2. weld": """
-from mimetic.mesh.weld import SEAM_AREA_SHARE, find_weld, seam_vertices
-from mimetic.mesh.winding import winding_flips
+from mimetic.mesh.weld import find_weld
 mesh = load("mesh.pkl")
 t = time.perf_counter()
-weld = find_weld(mesh)
-seams = seam_vertices(mesh) if weld.n_merged else None
-flips = winding_flips(weld.mesh.vertices, weld.mesh.faces, min_share=SEAM_AREA_SHARE)
-assert not flips.any(), "ICT's winding is consistent"
+weld = find_weld(mesh)  # rig_head checks the winding again only where validate_mesh found seams or flips
 dump(weld, "weld.pkl")
 """,
-    "3. landmarks (MediaPipe)": """
-from mimetic.fit.autolandmarks import auto_landmarks
-mesh = load("mesh.pkl")
+    "3. working copy (decimate, embed)": """
+from mimetic.fit.working import working_copy, working_vertices_for
+mesh, weld = load("mesh.pkl"), load("weld.pkl")
 t = time.perf_counter()
-found = auto_landmarks(mesh)
+working = working_vertices_for(mesh.n_vertices, None)
+copy = None if working is None else working_copy(mesh, weld.mesh, weld.index, working)
+dump(copy, "copy.pkl")
+if copy is None:
+    print("DIRECT")
 """,
-    "4. fit": """
+    "4. landmarks (MediaPipe)": """
+from mimetic.fit.autolandmarks import auto_landmarks
+mesh, copy = load("mesh.pkl"), load("copy.pkl")
+t = time.perf_counter()
+found = auto_landmarks(mesh if copy is None else copy.mesh)
+""",
+    "5. fit": """
 from mimetic.fit.reference import fit_reference
 from mimetic.fit.report import fit_report
-weld, landmarks = load("weld.pkl"), load("landmarks.pkl")
+from mimetic.mesh.weld import find_weld
+weld, copy, landmarks = load("weld.pkl"), load("copy.pkl"), load("landmarks.pkl")
 t = time.perf_counter()
-fit = fit_reference(weld.mesh, list(landmarks.names), landmarks.positions,
+fitted = weld if copy is None else find_weld(copy.mesh)
+fit = fit_reference(fitted.mesh, list(landmarks.names), landmarks.positions,
                     landmark_weights=np.maximum(landmarks.confidence, 0.05))
 assert not fit.flipped
 fit_report(fit, "cm")
 dump(fit, "fit.pkl")
+dump(fitted, "fitted.pkl")
 """,
-    "5. transfer + skin weights": """
+    "6. transfer + skin weights": """
 import dataclasses
 from mimetic.fit.transfer import transfer_rig
 from mimetic.rig.recipe import build_rig
 from mimetic.rig.weld import unweld_rig
-mesh, weld, fit = load("mesh.pkl"), load("weld.pkl"), load("fit.pkl")
+mesh, copy, fitted, fit = load("mesh.pkl"), load("copy.pkl"), load("fitted.pkl"), load("fit.pkl")
 t = time.perf_counter()
-welded = transfer_rig(build_rig(fit.head), weld.mesh, fit.conformation.to_model,
+welded = transfer_rig(build_rig(fit.head), fitted.mesh, fit.conformation.to_model,
                       openings=fit.openings, margins=fit.margins)
-user = dataclasses.replace(mesh, vertices=mesh.vertices @ welded.source_rotation)
-rig = unweld_rig(welded, weld, user) if weld.n_merged else welded
+target = mesh if copy is None else copy.mesh
+user = dataclasses.replace(target, vertices=target.vertices @ welded.source_rotation)
+rig = unweld_rig(welded, fitted, user) if fitted.n_merged else welded
+dump(rig, "transferred.pkl")
+""",
+    "7. carry to every vertex": """
+import dataclasses
+from mimetic.fit.working import carry_rig
+mesh, copy, proxy = load("mesh.pkl"), load("copy.pkl"), load("transferred.pkl")
+t = time.perf_counter()
+if copy is None:
+    rig = proxy
+    print("DIRECT")
+else:
+    user = dataclasses.replace(mesh, vertices=mesh.vertices @ proxy.source_rotation)
+    rig = carry_rig(proxy, copy, user)
 dump(rig, "rig.pkl")
 """,
-    "6. save .mrig": """
+    "8. save .mrig": """
 from mimetic.rig.format import save_rig
 rig = load("rig.pkl")
 t = time.perf_counter()
 save_rig(rig, W / "head.mrig")
 """,
-    "7. bake (wire engine)": """
+    "rig_mesh end to end (MediaPipe landmarks)": """
+from mimetic.fit.pipeline import rig_mesh
+t = time.perf_counter()
+result = rig_mesh(W / "head.ply", units="cm")
+assert result.report.accepted
+""",
+    "9. bake (wire engine)": """
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake
 from mimetic.rig.format import load_rig
 rig = load_rig(W / "head.mrig")
 t = time.perf_counter()
-bake(make_engine(rig, "wire"))
+basis = bake(make_engine(rig, "wire")).basis
+np.save(W / "deltas.npy", basis.deltas)
 """,
-    "8. export_glb (skin, no morph targets)": """
-from mimetic.export.gltf import export_glb
+    "10. export GLB (morph targets)": """
+from mimetic.engines.basis import Basis
+from mimetic.export.gltf import export_glb, morph_targets_from_basis
 from mimetic.rig.format import load_rig
 rig = load_rig(W / "head.mrig")
+deltas = np.load(W / "deltas.npy", mmap_mode="r")
 t = time.perf_counter()
-export_glb(rig, W / "head.glb")
+targets = morph_targets_from_basis(Basis(rig.channel_names, rig.mesh.vertices, deltas), rig)
+del deltas  # the basis is gone too: the targets are what the file needs
+export_glb(rig, W / "head.glb", morph_targets=targets)
+""",
+    "11. export USD (morph targets)": """
+from mimetic.engines.basis import Basis
+from mimetic.export.gltf import morph_targets_from_basis
+from mimetic.export.usd import export_usd
+from mimetic.rig.format import load_rig
+rig = load_rig(W / "head.mrig")
+deltas = np.load(W / "deltas.npy", mmap_mode="r")
+t = time.perf_counter()
+targets = morph_targets_from_basis(Basis(rig.channel_names, rig.mesh.vertices, deltas), rig)
+del deltas  # the basis is gone too: the targets are what the file needs
+export_usd(rig, W / "head.usdc", morph_targets=targets)
 """,
 }
 """Each stage's child code: it sets ``t`` where the timed work begins; the files it reads are
 written by the stages above it (``head.ply``, ``vertices.npy``, ``faces.npy`` and ``landmarks.pkl``
-by ``write_input``)."""
+by ``write_input``). A stage that prints DIRECT did not run at this size (the mesh is rigged
+directly, without a working copy)."""
 
 NEEDS = {
     "2. weld": "1. load + validate",
-    "3. landmarks (MediaPipe)": "1. load + validate",
-    "4. fit": "2. weld",
-    "5. transfer + skin weights": "4. fit",
-    "6. save .mrig": "5. transfer + skin weights",
-    "7. bake (wire engine)": "6. save .mrig",
-    "8. export_glb (skin, no morph targets)": "6. save .mrig",
+    "3. working copy (decimate, embed)": "2. weld",
+    "4. landmarks (MediaPipe)": "3. working copy (decimate, embed)",
+    "5. fit": "3. working copy (decimate, embed)",
+    "6. transfer + skin weights": "5. fit",
+    "7. carry to every vertex": "6. transfer + skin weights",
+    "8. save .mrig": "7. carry to every vertex",
+    "9. bake (wire engine)": "8. save .mrig",
+    "10. export GLB (morph targets)": "9. bake (wire engine)",
+    "11. export USD (morph targets)": "9. bake (wire engine)",
 }
 """The stage whose output each stage reads (a stage is skipped when that one failed)."""
 
@@ -172,6 +233,7 @@ class Cell:
     peak_gib: float = math.nan
     seconds: float = math.nan
     failure: str = ""
+    direct: bool = False
 
 
 def subdivided(mesh: Mesh, levels: int) -> Mesh:
@@ -208,11 +270,18 @@ def run_stage(stage: str, folder: Path, bound_gib: float) -> Cell:
     seconds = float(
         next(line.split()[1] for line in measured.stdout.splitlines() if line.startswith("SECONDS"))
     )
-    return Cell(measured.peak_gib, seconds)
+    return Cell(measured.peak_gib, seconds, direct="DIRECT" in measured.stdout.split())
 
 
-def measure(levels: tuple[int, ...], bound_gib: float, keep: Path | None) -> tuple[list[int], dict]:
-    """Every stage at every size: (vertex counts, {stage: [Cell per size]})."""
+BAKE_STAGES = ("9. bake (wire engine)", "10. export GLB (morph targets)", "11. export USD (morph targets)")
+
+
+def measure(
+    levels: tuple[int, ...], bound_gib: float, keep: Path | None, bake_up_to: int | None = None
+) -> tuple[list[int], dict]:
+    """Every stage at every size: (vertex counts, {stage: [Cell per size]}); the bake and export
+    stages only up to ``bake_up_to`` vertices when given. What is measured so far is written to
+    ``out/memory.json`` after each size (``--table`` prints it)."""
     ict, meta = load_ict(shared_data_dir() / "ict-facekit")
     sizes, cells = [], {stage: [] for stage in STAGES}
     for level in levels:
@@ -223,6 +292,9 @@ def measure(levels: tuple[int, ...], bound_gib: float, keep: Path | None) -> tup
             write_input(mesh, ict_landmarks(mesh, meta), folder)
             for stage in STAGES:
                 need = NEEDS.get(stage)
+                if stage in BAKE_STAGES and bake_up_to is not None and mesh.n_vertices > bake_up_to:
+                    cells[stage].append(Cell(failure=f"not run (--bake-up-to {bake_up_to:,})"))
+                    continue
                 if need and cells[need][-1].failure:
                     cells[stage].append(Cell(failure=f"skipped ({need.split(' ', 1)[1]} failed)"))
                     continue
@@ -232,7 +304,24 @@ def measure(levels: tuple[int, ...], bound_gib: float, keep: Path | None) -> tup
                     f"   {mesh.n_vertices:>9,} vertices  {stage:<40} "
                     + (cell.failure or f"{cell.peak_gib:6.2f} GiB {cell.seconds:8.1f} s")
                 )
+        save_json(sizes, cells)
     return sizes, cells
+
+
+def save_json(sizes: list[int], cells: dict) -> None:
+    """The cells measured so far, as ``out/memory.json``."""
+    raw = {stage: [c.__dict__ for c in row] for stage, row in cells.items()}
+    report.OUT.mkdir(exist_ok=True)
+    with atomic_write(report.OUT / "memory.json", "w") as handle:
+        json.dump({"sizes": sizes, "cells": raw}, handle, indent=1)
+
+
+def load_json() -> tuple[list[int], dict]:
+    """``out/memory.json`` as (sizes, {stage: [Cell]}), sizes not measured by every stage dropped."""
+    data = json.loads((report.OUT / "memory.json").read_text())
+    cells = {stage: [Cell(**c) for c in row] for stage, row in data["cells"].items()}
+    count = min(len(row) for row in cells.values())
+    return data["sizes"][:count], {stage: row[:count] for stage, row in cells.items()}
 
 
 def slope(sizes: list[int], values: list[float]) -> float:
@@ -246,6 +335,8 @@ def slope(sizes: list[int], values: list[float]) -> float:
 def cell_text(cell: Cell, bound_gib: float) -> str:
     if cell.failure:
         return cell.failure
+    if cell.direct:
+        return "— (rigged directly)"
     over = " **over bound**" if cell.peak_gib > bound_gib else ""
     return f"{cell.peak_gib:.2f} GiB · {cell.seconds:.1f} s{over}"
 
@@ -261,8 +352,8 @@ def table(sizes: list[int], cells: dict, bound_gib: float) -> tuple[tuple[str, .
     base = next(iter(cells.values()))[-1].peak_gib
     rows = []
     for stage, row in cells.items():
-        peak = slope(sizes, [c.peak_gib for c in row])
-        seconds = slope(sizes, [c.seconds for c in row])
+        peak = slope(sizes, [math.nan if c.direct else c.peak_gib for c in row])
+        seconds = slope(sizes, [math.nan if c.direct else c.seconds for c in row])
         ratio = row[-1].peak_gib / base
         rows.append((
             stage,
@@ -278,6 +369,12 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="up to 420k vertices (ICT subdivided twice)")
     parser.add_argument("--bound-gib", type=float, default=BOUND_GIB, help="the peak allowed per stage")
     parser.add_argument("--keep", type=Path, help="make the working folders in DIR (default: the system's)")
+    parser.add_argument(
+        "--bake-up-to", type=int, metavar="N", help="bake and export only meshes of at most N vertices"
+    )
+    parser.add_argument(
+        "--table", action="store_true", help="print the table of out/memory.json, measure nothing"
+    )
     args = parser.parse_args()
     if shared_data_dir() is None:
         report.console.print(
@@ -285,7 +382,12 @@ def main() -> None:
         )
         return
     begin = time.perf_counter()
-    sizes, cells = measure(QUICK_LEVELS if args.quick else LEVELS, args.bound_gib, args.keep)
+    if args.table:
+        sizes, cells = load_json()
+    else:
+        sizes, cells = measure(
+            QUICK_LEVELS if args.quick else LEVELS, args.bound_gib, args.keep, args.bake_up_to
+        )
     columns, rows = table(sizes, cells, args.bound_gib)
     markdown = report.show(
         f"Peak RSS and time of each stage, fresh child per stage (bound {args.bound_gib:g} GiB)",
@@ -294,9 +396,7 @@ def main() -> None:
         "growth: log-log slope between the two largest sizes (1 = linear in the vertex count)",
     )
     report.save("memory", [markdown])
-    raw = {stage: [c.__dict__ for c in row] for stage, row in cells.items()}
-    with atomic_write(report.OUT / "memory.json", "w") as handle:
-        json.dump({"sizes": sizes, "cells": raw}, handle, indent=1)
+    save_json(sizes, cells)
     report.console.print(f"benchmark wall time {time.perf_counter() - begin:.0f} s")
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import warnings
 from functools import cache
 
@@ -10,7 +11,7 @@ import pytest
 
 from mimetic.engines import ENGINES, make_engine
 from mimetic.engines.bake import RIGID, bake, channel_extent, random_poses
-from mimetic.engines.basis import evaluate_basis
+from mimetic.engines.basis import basis_bytes, evaluate_basis, human_bytes
 from mimetic.errors import MimeticWarning
 from mimetic.testing import small_rig
 
@@ -127,3 +128,30 @@ def test_bake_gives_an_engines_warning_once_with_how_many_poses_gave_it(rig, eng
     assert str(mine[0].message).startswith("bake: stopped short at jaw")
     assert mine[0].filename == __file__  # points at the caller of bake
     assert result.basis.deltas.shape[0] == len(rig.channels)
+
+
+def test_bake_keeps_the_strongest_pairs_and_says_the_basis_size_first(caplog):
+    engine = make_engine(small_rig(), "wire")
+    with caplog.at_level(logging.INFO, logger="mimetic.engines.bake"):
+        few = bake(engine, correctives=3, samples=1).basis
+    c, n = len(engine.rig.channels), engine.rig.n_vertices
+    said = [r.getMessage() for r in caplog.records if "the basis will hold" in r.getMessage()]
+    assert len(said) == 1 and human_bytes(basis_bytes(c, n, 3)) in said[0] and f"{n:,} vertices" in said[0]
+    # the pairs kept with a budget of 3 are the 3 strongest of a budget of 12, in the same order
+    many = baked("wire")[1].basis
+    assert [t.channels for t in few.correctives] == [t.channels for t in many.correctives[:3]]
+    for a, b in zip(few.correctives, many.correctives, strict=False):
+        np.testing.assert_array_equal(a.delta, b.delta)
+
+
+def test_basis_bytes_and_human_bytes():
+    assert basis_bytes(64, 1_000_000) == 65 * 1_000_000 * 24
+    assert basis_bytes(2, 10, 1, itemsize=4) == 4 * 10 * 12
+    assert [human_bytes(x) for x in (0, 1023, 1536, 5 * 2**20, 1.5 * 2**30, 300 * 2**30)] == [
+        "0 B",
+        "1023 B",
+        "1.5 KiB",
+        "5 MiB",
+        "1.5 GiB",
+        "300 GiB",
+    ]

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import mimetic.engines.basis as basis_module
-from mimetic.engines.basis import Basis, Corrective, check_activations, evaluate_basis
+from mimetic.engines.basis import Basis, Corrective, Handover, check_activations, evaluate_basis
 from mimetic.errors import ActivationError, RigError
 
 UNIT_ROUNDOFF = {np.float32: 2.0**-24, np.float64: 2.0**-53}
@@ -398,3 +398,14 @@ def test_evaluate_basis_results_do_not_alias_each_other_or_the_basis():
     first = evaluate_basis(SMALL_BASIS, np.zeros(N_CHANNELS))
     first += 1.0  # the caller owns the result
     np.testing.assert_array_equal(evaluate_basis(SMALL_BASIS, np.zeros(N_CHANNELS)), SMALL_BASIS.neutral)
+
+
+def test_basis_keeps_a_handover_array_without_copying_it():
+    deltas = np.zeros((2, 5, 3))
+    kept = Basis(("a", "b"), np.zeros((5, 3)), Handover(deltas))
+    assert kept.deltas is deltas and not deltas.flags.writeable
+    source = np.zeros((2, 5, 3))
+    copied = Basis(("a", "b"), np.zeros((5, 3)), source)
+    assert copied.deltas is not source and source.flags.writeable
+    with pytest.raises(RigError, match="C-contiguous float64"):
+        Basis(("a", "b"), np.zeros((5, 3)), Handover(np.zeros((2, 5, 3), np.float32)))

@@ -8,6 +8,7 @@ the engine within the documented approximation.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import warnings
 
@@ -16,6 +17,7 @@ import pygltflib as gl
 import pytest
 from scipy.spatial.transform import Rotation
 
+import mimetic.export.gltf as gltf_module
 from mimetic.engines import make_engine
 from mimetic.engines.bake import bake, random_poses
 from mimetic.engines.basis import evaluate_basis
@@ -271,10 +273,24 @@ def test_export_glb_failure_while_writing_keeps_old_file(rig, tmp_path, monkeypa
     export_glb(rig, path)
     good = path.read_bytes()
 
-    def fail(self):
-        raise OSError("disk full")
+    real = gltf_module.atomic_write
 
-    monkeypatch.setattr(gl.GLTF2, "save_to_bytes", fail)
+    class Full:  # the disk fills up after the header and the JSON: the binary chunk fails
+        def __init__(self, handle):
+            self.handle, self.writes = handle, 0
+
+        def write(self, data):
+            self.writes += 1
+            if self.writes > 4:
+                raise OSError("disk full")
+            return self.handle.write(data)
+
+    @contextlib.contextmanager
+    def filling(path, mode="wb"):
+        with real(path, mode) as handle:
+            yield Full(handle)
+
+    monkeypatch.setattr(gltf_module, "atomic_write", filling)
     with pytest.raises(OSError, match="disk full"):
         export_glb(rig, path, morph_targets={"x": np.ones((rig.n_vertices, 3))})
     assert path.read_bytes() == good

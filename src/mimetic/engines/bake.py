@@ -20,6 +20,8 @@ many of the bake's poses gave them, not once per pose.
 
 from __future__ import annotations
 
+import heapq
+import logging
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -29,10 +31,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mimetic.engines.basis import Basis, Corrective, evaluate_basis
+from mimetic.engines.basis import Basis, Corrective, Handover, basis_bytes, evaluate_basis, human_bytes
 
 if TYPE_CHECKING:  # mimetic.engines imports this module
     from mimetic.engines import Engine
+
+log = logging.getLogger(__name__)
+
+CORRECTIVES = 24
+"""Pairwise correctives a bake keeps by default (the strongest pairs)."""
+SAMPLES = 32
+"""Random poses a bake checks its basis on by default."""
 
 Progress = Callable[[int, int], None]
 
@@ -112,9 +121,10 @@ def bake(
     """Linearise ``engine`` into a ``Basis`` with up to ``correctives`` pairwise terms; report its error
     over ``samples`` random poses. Both default to the engine's ``bake_correctives`` and
     ``bake_samples`` where it has them (the tissue engine solves a pose in about a quarter of a second,
-    so it bakes without correctives and checks 4 poses), else to 24 and 32."""
-    correctives = getattr(engine, "bake_correctives", 24) if correctives is None else correctives
-    samples = getattr(engine, "bake_samples", 32) if samples is None else samples
+    so it bakes without correctives and checks 4 poses), else to ``CORRECTIVES`` and ``SAMPLES``.
+    The basis's size is logged (info) before it is made."""
+    correctives = getattr(engine, "bake_correctives", CORRECTIVES) if correctives is None else correctives
+    samples = getattr(engine, "bake_samples", SAMPLES) if samples is None else samples
     poses = 0
 
     def deform(values: np.ndarray) -> np.ndarray:
@@ -140,64 +150,111 @@ def _bake(
     zero = np.array([ch.default for ch in rig.channels])
     neutral = deform(zero)
     amplitude = np.zeros(c)
-    single = {}
+    held: dict[int, np.ndarray] = {}  # the posed vertices of channels a delta cannot give back
+    moving: dict[int, np.ndarray] = {}  # (n,) bool: the vertices each channel moves
+    log.info(
+        "baking %d channels (+ up to %d correctives) of %s vertices: the basis will hold %s (float64)",
+        c,
+        correctives,
+        f"{rig.n_vertices:,}",
+        human_bytes(basis_bytes(c, rig.n_vertices, correctives)),
+    )
     deltas = np.zeros((c, rig.n_vertices, 3))
     steps = c + samples
     done = 0
     for j, ch in enumerate(rig.channels):
         if ch.name in RIGID:
             amplitude[j] = 1.0
-            single[j] = neutral
+            held[j] = neutral
+            moving[j] = np.zeros(rig.n_vertices, dtype=bool)
             continue
         x, central = channel_extent(ch.minimum, ch.maximum)
         amplitude[j] = x
         plus = zero.copy()
         plus[j] = x
-        single[j] = deform(plus)
+        posed = deform(plus)
         if central:
             minus = zero.copy()
             minus[j] = -x
-            deltas[j] = (single[j] - deform(minus)) / (2 * x)
+            deltas[j] = (posed - deform(minus)) / (2 * x)
+            held[j] = posed
         else:
-            deltas[j] = (single[j] - neutral) / x
+            deltas[j] = (posed - neutral) / x
+        moving[j] = np.abs(posed - neutral).max(axis=1) > 1e-9 * rig.scale
         done += 1
         if progress:
             progress(done, steps)
-    moving = {j: np.abs(single[j] - neutral).max(axis=1) > 1e-9 * rig.scale for j in single}
+
     terms = []
     if correctives:
         candidates = [(i, j) for i, j in combinations(range(c), 2) if np.any(moving[i] & moving[j])]
-        strength = []
-        for i, j in candidates:
-            both = zero.copy()
-            both[i], both[j] = amplitude[i], amplitude[j]
-            delta = (deform(both) - single[i] - single[j] + neutral) / (amplitude[i] * amplitude[j])
-            strength.append((np.abs(delta).max() * abs(amplitude[i] * amplitude[j]), i, j, delta))
-        strength.sort(key=lambda s: -s[0])
+        del moving
+        strongest = _strongest_pairs(deform, zero, neutral, held, deltas, amplitude, candidates, correctives)
         names = rig.channel_names
-        terms = [Corrective((names[i], names[j]), d) for _, i, j, d in strength[:correctives] if _ > 0]
-    basis = Basis(rig.channel_names, neutral, deltas, tuple(terms))
-    linear = Basis(rig.channel_names, neutral, deltas)
-    poses = random_poses(engine, samples, np.random.default_rng(seed))
-    fitted, fitted_linear = evaluate_basis(basis, poses), evaluate_basis(linear, poses)  # (samples, n, 3)
-    errors, errors_linear = [], []
-    for pose, fit, fit_linear in zip(poses, fitted, fitted_linear, strict=True):
+        terms = [Corrective((names[i], names[j]), Handover(d)) for i, j, d in strongest]
+        del strongest
+    basis = Basis(rig.channel_names, neutral, Handover(deltas), tuple(terms))
+    del deltas, held, terms  # the basis holds them
+    # the error over random poses, one pose at a time and with the basis's equation written out:
+    # (samples, n, 3) frames, or evaluate_basis's layouts (copies of every term), would not fit at 1M
+    pairs = [(rig.channel_index(a), rig.channel_index(b)) for a, b in (t.channels for t in basis.correctives)]
+    e_max = e_sum = el_max = el_sum = 0.0
+    for pose in random_poses(engine, samples, np.random.default_rng(seed)):
         truth = deform(pose)
-        errors.append(np.linalg.norm(fit - truth, axis=1))
-        errors_linear.append(np.linalg.norm(fit_linear - truth, axis=1))
+        linear = basis.neutral + np.tensordot(pose, basis.deltas, axes=1)  # (n, 3)
+        fitted = linear.copy()
+        for (i, j), term in zip(pairs, basis.correctives, strict=True):
+            fitted += (pose[i] * pose[j]) * term.delta
+        e = np.linalg.norm(fitted - truth, axis=1)
+        el = np.linalg.norm(linear - truth, axis=1)
+        e_max, e_sum = max(e_max, float(e.max())), e_sum + float(np.sum(e**2))
+        el_max, el_sum = max(el_max, float(el.max())), el_sum + float(np.sum(el**2))
         done += 1
         if progress:
             progress(done, steps)
-    e, el = np.concatenate(errors), np.concatenate(errors_linear)
+    count = max(samples * rig.n_vertices, 1)
     report = BakeReport(
-        samples,
-        float(e.max()),
-        float(np.sqrt(np.mean(e**2))),
-        float(el.max()),
-        float(np.sqrt(np.mean(el**2))),
-        rig.scale,
+        samples, e_max, float(np.sqrt(e_sum / count)), el_max, float(np.sqrt(el_sum / count)), rig.scale
     )
     return BakeResult(basis, report)
+
+
+def _strongest_pairs(
+    deform: Callable[[np.ndarray], np.ndarray],
+    zero: np.ndarray,
+    neutral: np.ndarray,
+    held: dict[int, np.ndarray],
+    deltas: np.ndarray,
+    amplitude: np.ndarray,
+    candidates: list[tuple[int, int]],
+    keep: int,
+) -> list[tuple[int, int, np.ndarray]]:
+    """The ``keep`` candidate pairs (i, j) with the strongest corrections, strongest first (ties in
+    candidate order), each with its correction (n, 3); pairs without any correction are left out.
+    A channel alone at its amplitude is ``held[j]`` (channels a delta cannot give back: central
+    secants, the rigid head), else ``neutral + amplitude[j] * deltas[j]``.
+
+    Only the ``keep`` strongest corrections seen so far are held (a heap), not one per candidate:
+    about 950 candidates of (n, 3) float64 were 22 GiB at 1M vertices.
+    """
+
+    def single(j: int) -> np.ndarray:
+        return held[j] if j in held else neutral + amplitude[j] * deltas[j]
+
+    heap: list[tuple[float, int, int, int, np.ndarray]] = []
+    for order, (i, j) in enumerate(candidates):
+        both = zero.copy()
+        both[i], both[j] = amplitude[i], amplitude[j]
+        delta = (deform(both) - single(i) - single(j) + neutral) / (amplitude[i] * amplitude[j])
+        strength = float(np.abs(delta).max() * abs(amplitude[i] * amplitude[j]))
+        if strength <= 0:
+            continue
+        item = (strength, -order, i, j, delta)
+        if len(heap) < keep:
+            heapq.heappush(heap, item)
+        elif item[:2] > heap[0][:2]:
+            heapq.heapreplace(heap, item)
+    return [(i, j, d) for _, _, i, j, d in sorted(heap, key=lambda s: (-s[0], -s[1]))]
 
 
 def evaluate_rigid(rig, basis: Basis, activations: np.ndarray, *, dtype=np.float64) -> np.ndarray:

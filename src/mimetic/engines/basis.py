@@ -75,10 +75,26 @@ LIMITS = {np.dtype(np.float64): 2.0**1023, np.dtype(np.float32): 2.0**127}
 # --------------------------------------------------------------------------- the basis
 
 
+@dataclass(frozen=True)
+class Handover:
+    """An array handed to a ``Basis`` or ``Corrective`` to keep as it is, where they copy anything
+    else: for a maker (``engines.bake``) that built the array for them and drops its own reference
+    (a 1M-vertex basis's deltas are 1.5 GB; a copy doubled the bake's peak). The array must be
+    C-contiguous float64; it is made read-only."""
+
+    array: np.ndarray
+
+
 def _frozen(value: object, where: str, *, ndim: int) -> np.ndarray:
-    """A read-only C-contiguous float64 copy of ``value`` with ``ndim`` dimensions and finite values."""
+    """A read-only C-contiguous float64 copy of ``value`` (``value.array`` itself for a ``Handover``)
+    with ``ndim`` dimensions and finite values."""
     try:
-        array = np.array(value, dtype=np.float64, copy=True, order="C")
+        if isinstance(value, Handover):
+            array = value.array
+            if array.dtype != np.float64 or not array.flags.c_contiguous:
+                raise TypeError("a Handover array must be C-contiguous float64")
+        else:
+            array = np.array(value, dtype=np.float64, copy=True, order="C")
     except (TypeError, ValueError) as error:
         raise RigError(f"{where} cannot be read as a float64 array: {error}") from None
     if array.ndim != ndim or array.shape[-1] != 3:
@@ -221,6 +237,23 @@ class Basis:
     @cached_property
     def _runs32(self) -> _Runs:
         return _Runs.build(self, np.dtype(np.float32))
+
+
+def basis_bytes(channels: int, vertices: int, correctives: int = 0, *, itemsize: int = 8) -> int:
+    """Bytes of a basis's arrays: ``(channels + correctives + 1) × vertices × 3 × itemsize`` (the
+    deltas, the correctives' deltas and the neutral; float64 unless ``itemsize`` says otherwise)."""
+    return (channels + correctives + 1) * vertices * 3 * itemsize
+
+
+def human_bytes(size: float) -> str:
+    """A byte count for people: '812 kB', '1.4 MiB'…, '2.31 GiB' (binary units above a kilobyte)."""
+    if size < 1024:
+        return f"{int(size)} B"
+    for unit in ("KiB", "MiB", "GiB", "TiB"):
+        size /= 1024
+        if size < 1024 or unit == "TiB":
+            return f"{size:.3g} {unit}" if size < 100 else f"{size:.0f} {unit}"
+    raise AssertionError("unreachable")
 
 
 def check_activations(channels: Sequence[str], activations: object, *, ndim: int | None = None) -> np.ndarray:

@@ -235,7 +235,7 @@ def _smooth_jaw(
     return out / out.sum(axis=1, keepdims=True)
 
 
-def _close_lids(
+def close_lids(
     reference: Rig,
     mesh: Mesh,
     weights: np.ndarray,
@@ -495,7 +495,7 @@ def transfer_rig(
 
     # the upper lids close onto the user's own lower lids at the channel's maximum (a closing made on
     # the reference's lids lands short of or past a scan's): mimetic.rig.anatomy.closing_weights
-    weights, bones = _close_lids(reference, user_rig_mesh, weights, regions, bones, landmarks, scale)
+    weights, bones = close_lids(reference, user_rig_mesh, weights, regions, bones, landmarks, scale)
     # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
     # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
     riding = find_accessories(user_rig_mesh, scale, sp.csr_matrix(weights))

@@ -17,7 +17,7 @@ import fast_simplification
 import numpy as np
 from scipy import sparse
 
-from mimetic.mesh.closest import closest_points
+from mimetic.mesh.closest import CANDIDATES, closest_points
 
 
 def decimate(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
@@ -88,22 +88,29 @@ class Embedding:
 
 
 def embed(
-    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, normals: np.ndarray | None = None
+    points: np.ndarray,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    normals: np.ndarray | None = None,
+    candidates: int = CANDIDATES,
 ) -> Embedding:
     """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``.
 
     With ``normals`` (n, 3) (the points' unit normals) a point takes the closest triangle that faces
     its way (``closest_points``' normal test), so where two sheets of a surface nearly touch (the
     lips, a fold) a point is not tied to the other sheet; a point no such triangle faces takes the
-    closest of all.
+    closest of all. ``candidates``: the triangles, nearest by centroid, each point looks among
+    (``mesh.closest``; fewer is faster, and enough for points on the proxy's surface, as a dense
+    mesh's own vertices are).
     """
     points = np.asarray(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    found = closest_points(vertices, faces, points, query_normals=normals)
+    found = closest_points(vertices, faces, points, query_normals=normals, candidates=candidates)
     if normals is not None and np.any(found.faces < 0):  # facing no triangle: the closest of all
         lost = np.flatnonzero(found.faces < 0)
-        anyway = closest_points(vertices, faces, points[lost])
+        anyway = closest_points(vertices, faces, points[lost], candidates=candidates)
         for name in ("points", "faces", "bary", "distance"):
             getattr(found, name)[lost] = getattr(anyway, name)
     if np.any(found.faces < 0):

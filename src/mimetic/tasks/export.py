@@ -6,6 +6,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mimetic.engines import ENGINES
+from mimetic.engines.bake import CORRECTIVES as BAKE_CORRECTIVES
+from mimetic.engines.basis import basis_bytes, human_bytes
 from mimetic.tasks.base import (
     Progress,
     Result,
@@ -50,7 +52,17 @@ def run(
         announce(progress, "ARKit shapes")
         targets = arkit_shapes(engine)
     else:
-        targets = prepared.morph_targets(options.engine, stage(progress, f"bake {options.engine}"))
+        rig = prepared.rig
+        size = human_bytes(basis_bytes(len(rig.channels), rig.n_vertices, BAKE_CORRECTIVES))
+        targets = prepared.morph_targets(
+            options.engine, stage(progress, f"bake {options.engine} (basis {size})")
+        )
+    n_vertices = prepared.rig.n_vertices
+    # each target: float32 positions and normals (a sparse accessor for a local one is smaller)
+    size = human_bytes(basis_bytes(len(targets), n_vertices, itemsize=4 * 2))
+    announce(
+        progress, f"write {Path(output).name} ({len(targets)} targets × {n_vertices:,} vertices, ≤ {size})"
+    )
     written = [write_scene(prepared, output, targets, progress=progress)]
     if options.obj_dir is not None:
         from mimetic.mesh.io import save_mesh

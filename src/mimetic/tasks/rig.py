@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from mimetic.fit.working import MIN_WORKING_VERTICES, WORKING_THRESHOLD, WORKING_VERTICES
 from mimetic.head.model import DEFAULT_RESOLUTION
 from mimetic.mesh.units import UNIT_SCALE
 from mimetic.tasks.base import Progress, Result, Task, TaskError, TaskOptions, beside, check_output, option
@@ -35,11 +36,35 @@ class RigOptions(TaskOptions):
         maximum=RESOLUTIONS[1],
     )
     picture: bool = option(True, "Write the fit's picture, NAME.fit.png, beside the rig.")
+    working_resolution: str = option(
+        "auto",
+        "Vertices of the decimated copy a dense mesh is rigged on before the rig is carried to every "
+        f"vertex: a count, 'full' (fit every vertex) or 'auto' ({WORKING_VERTICES:,} above "
+        f"{WORKING_THRESHOLD:,} vertices, else full).",
+        metavar="N|full|auto",
+    )
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.landmarks is not None and self.auto_landmarks:
             raise TaskError("give landmarks or auto_landmarks, not both")
+        working_vertices(self.working_resolution)
+
+
+def working_vertices(text: str) -> int | str | None:
+    """``rig_head``'s ``working_vertices`` from the option's text: "auto" → None, "full", or a count
+    of at least ``MIN_WORKING_VERTICES``."""
+    text = str(text).strip().lower().replace("_", "").replace(",", "")
+    if text == "auto":
+        return None
+    if text == "full":
+        return "full"
+    if not text.isdigit() or int(text) < MIN_WORKING_VERTICES:
+        raise TaskError(
+            f"working resolution {text!r} must be 'auto', 'full' or a vertex count of at least "
+            f"{MIN_WORKING_VERTICES:,} (e.g. --working-resolution 100000)"
+        )
+    return int(text)
 
 
 def outputs(main: Path, options: RigOptions) -> tuple[Path, ...]:
@@ -63,6 +88,7 @@ def run(
         resolution=options.resolution,
         force=options.force,
         progress=progress,
+        working_vertices=working_vertices(options.working_resolution),
     )
     report_file, *picture = outputs(Path(output), options)
     written = [save_rig(result.rig, output), result.report.save(report_file)]
