@@ -24,6 +24,14 @@ def test_decimate_reaches_the_target_and_keeps_the_surface(sphere):
     assert np.abs(radius - 10.0).max() < 0.05  # the proxy's vertices stay on the sphere
 
 
+def test_read_only_arrays_as_a_mesh_holds_them(sphere):
+    vertices, faces = (np.array(a) for a in sphere)
+    for a in (vertices, faces):
+        a.setflags(write=False)
+    proxy_v, _ = decimate(vertices, faces, 1_000)
+    assert 800 <= len(proxy_v) <= 1_200
+
+
 def test_a_small_surface_comes_back_unchanged(sphere):
     vertices, faces = sphere
     same_v, same_f = decimate(vertices, faces, 20_000)

@@ -36,7 +36,9 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.n
         return vertices, faces
     # a closed surface has about twice as many triangles as vertices; an open one a little fewer
     reduction = 1.0 - target / len(used)
-    out_v, out_f = fast_simplification.simplify(vertices, faces, target_reduction=reduction)
+    # its binding takes only writeable C-ordered arrays (a Mesh's arrays are read-only)
+    writeable = [np.require(a, requirements=["C", "W"]) for a in (vertices, faces)]
+    out_v, out_f = fast_simplification.simplify(*writeable, target_reduction=reduction)
     return np.asarray(out_v, dtype=np.float64), np.asarray(out_f, dtype=np.int64)
 
 
