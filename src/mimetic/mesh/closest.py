@@ -68,6 +68,7 @@ def closest_points(
     flat = near.ravel()
     pts = trimesh.triangles.closest_point(tri[flat], np.repeat(q, k, axis=0)).reshape(len(q), k, 3)
     dist = np.linalg.norm(pts - q[:, None, :], axis=2)  # (q, k)
+    dist = np.where(np.isfinite(dist), dist, np.inf)
     if query_normals is not None:
         fn = face_normals(v, f)
         cos = np.einsum("qkd,qd->qk", fn[near], np.asarray(query_normals, dtype=np.float64))
@@ -80,7 +81,14 @@ def closest_points(
     found = np.isfinite(distance)
     bary = np.zeros((len(q), 3))
     if found.any():
-        b = trimesh.triangles.points_to_barycentric(tri[face[found]], point[found])
-        b = np.clip(b, 0.0, None)
-        bary[found] = b / b.sum(axis=1, keepdims=True)
+        corners = tri[face[found]]  # (f, 3, 3)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            b = np.clip(trimesh.triangles.points_to_barycentric(corners, point[found]), 0.0, None)
+            b /= b.sum(axis=1, keepdims=True)
+        # a degenerate triangle (no area: scans and decimations have them) has no barycentric
+        # coordinates: its corner nearest the point stands for it
+        flat = ~np.isfinite(b).all(axis=1)
+        nearest = np.argmin(np.linalg.norm(corners[flat] - point[found][flat, None], axis=2), axis=1)
+        b[flat] = np.eye(3)[nearest]
+        bary[found] = b
     return ClosestPoints(point, np.where(found, face, -1), bary, distance)
