@@ -38,13 +38,10 @@ import numpy as np
 
 from mimetic.rig.anatomy.creases import Crease
 from mimetic.rig.anatomy.local import CHANNELS as LOCAL_CHANNELS
-from mimetic.rig.anatomy.local import LOCAL_BUMPS, local_actions
+from mimetic.rig.anatomy.local import LOCAL_BUMPS, MIN_WEIGHT, local_actions
 
 Action = Crease
 """An action is stored as a crease is: channel gains, vertices and offsets at full activation."""
-
-MIN_WEIGHT = 1e-3
-"""Vertices a field moves by less than this share of its amplitude are left out."""
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,8 @@ if TYPE_CHECKING:
     from mimetic.rig.anatomy.actions import Surface
 
 MIN_WEIGHT = 1e-3
-"""Vertices a field moves by less than this share of its amplitude are left out (as ``actions``)."""
+"""Vertices a field moves by less than this share of its amplitude are left out (here and in
+``actions``)."""
 
 
 @dataclass(frozen=True)
