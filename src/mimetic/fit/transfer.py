@@ -80,7 +80,7 @@ def _interpolate(values: sp.spmatrix | np.ndarray, corners: np.ndarray, bary: np
     return pick @ values
 
 
-def _top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
+def top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
     """Each row (n, bones) with its ``limit`` largest weights kept and renormalised to sum 1."""
     dense = np.array(weights, dtype=np.float64)
     if dense.shape[1] > limit:
@@ -387,7 +387,7 @@ def transfer_rig(
     corners = mesh_ref.faces[hit.faces]  # (n_user, 3)
 
     # skin weights
-    weights = _top_influences(
+    weights = top_influences(
         _interpolate(reference.skin_weights, corners, hit.bary).toarray(), MAX_INFLUENCES
     )
     for part, ids in rigid.items():
@@ -499,7 +499,7 @@ def transfer_rig(
     # accessories (eyelashes and the like) take the weights at their rivets: the engines place them
     # by their rivets anyway, and a skinned export then swings a lash with its lid as one piece
     riding = find_accessories(user_rig_mesh, scale, sp.csr_matrix(weights))
-    weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
+    weights[riding.vertices] = top_influences(riding.weights, MAX_INFLUENCES)
     weights = sp.csr_matrix(weights)
 
     return Rig(

@@ -38,7 +38,7 @@ from scipy.sparse.csgraph import connected_components as graph_components
 from scipy.spatial import cKDTree
 
 from mimetic.errors import MeshError
-from mimetic.fit.transfer import close_lids
+from mimetic.fit.transfer import MAX_INFLUENCES, MEMBERSHIP, close_lids, top_influences
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.decimate import Embedding, decimate, embed
 from mimetic.mesh.geometry import connected_components, vertex_normals
@@ -79,8 +79,6 @@ LID_DEPTH_REL = 3.0
 """... and how far behind the eyeball's centre the box reaches, × the eyeball's radius."""
 MAX_DIFFUSION_STEPS = 64
 """The most neighbour-averaging steps the carried skin weights take (``_diffused``)."""
-MAX_INFLUENCES = 4
-MEMBERSHIP = 0.5
 
 
 @dataclass(frozen=True)
@@ -222,12 +220,12 @@ def carry_rig(proxy: Rig, copy: WorkingCopy, mesh: Mesh, metadata: dict | None =
     n = mesh.n_vertices
     # 1. skin weights: interpolated, the 4 largest kept and renormalised
     weights = (pick @ proxy.skin_weights).toarray()
-    weights = _top_influences(weights, MAX_INFLUENCES)
+    weights = top_influences(weights, MAX_INFLUENCES)
     # interpolated over the copy's triangles the weights bend at the copy's edges, which a skinned
     # dense surface shows as facets (a jaw opening crumpled the cheeks at 420k): diffused over the
     # user's own surface by about one copy edge they bend smoothly (each rigid piece stays one-hot)
     steps = _diffusion_steps(copy, mesh)
-    weights = _top_influences(_diffused(weights, mesh.faces, steps), MAX_INFLUENCES)
+    weights = top_influences(_diffused(weights, mesh.faces, steps), MAX_INFLUENCES)
 
     # 2. parts: a whole piece lands on one piece of the copy; a face takes its first vertex's
     nearest = tie.triangles[np.arange(n), np.argmax(tie.bary, axis=1)]  # (n,) copy vertex
@@ -277,7 +275,7 @@ def carry_rig(proxy: Rig, copy: WorkingCopy, mesh: Mesh, metadata: dict | None =
     weights, bones = _closed_lids(proxy, dense, weights, regions, landmarks)
     # accessories take the weights at their rivets, as the transfer gives them (a lash swings with its lid)
     riding = find_accessories(dense, proxy.scale, sp.csr_matrix(weights))
-    weights[riding.vertices] = _top_influences(riding.weights, MAX_INFLUENCES)
+    weights[riding.vertices] = top_influences(riding.weights, MAX_INFLUENCES)
     skin_weights = sp.csr_matrix(weights)
     anatomy = _carried_anatomy(proxy, pick, dense, landmarks, regions, skin_weights, riding)
     return Rig(
@@ -294,16 +292,6 @@ def carry_rig(proxy: Rig, copy: WorkingCopy, mesh: Mesh, metadata: dict | None =
         metadata={**proxy.metadata, **(metadata or {})},
         anatomy=anatomy,
     )
-
-
-def _top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
-    """Each row (n, bones) with its ``limit`` largest weights kept and renormalised to sum 1."""
-    if weights.shape[1] > limit:
-        cut = -np.partition(-weights, limit - 1, axis=1)[:, limit - 1 : limit]
-        weights = np.where(weights >= cut, weights, 0.0)
-    weights[weights < 1e-6] = 0.0
-    weights /= weights.sum(axis=1, keepdims=True)
-    return weights
 
 
 def _median_edge(vertices: np.ndarray, faces: np.ndarray, sample: int = 100_000) -> float:
