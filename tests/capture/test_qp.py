@@ -68,3 +68,24 @@ def test_an_interior_optimum_is_the_unconstrained_solution():
     x, solved = box_qp_frames(H, x_star @ H, np.zeros(6), np.ones(6))
     assert solved.all()
     np.testing.assert_allclose(x, x_star, atol=1e-12)
+
+
+def test_a_variable_freed_at_its_bound_stays_there_when_the_step_is_blocked_at_once():
+    """Found by a random search: the variable freed at its lower bound (wanting to rise) while another
+    variable blocked the step at zero length was sent to its upper bound, here infinity, and the
+    frame came back 'solved' with inf in it."""
+    H = np.array([
+        [5.497653173027783, -2.030457075134373, -1.2103281004190198, 3.0639365634951012, 0.03985136823584233],
+        [-2.030457075134373, 2.992529973853138, 4.006640769101604, -2.8755810577903276, -1.8653553486826564],
+        [-1.2103281004190198, 4.006640769101604, 9.28032631598238, -4.210999925295763, -2.957341716207161],
+        [3.0639365634951012, -2.8755810577903276, -4.210999925295763, 3.3712826562395097, 1.8890025503706822],
+        [0.03985136823584233, -1.8653553486826564, -2.957341716207161, 1.8890025503706822, 6.57521236472973],
+    ])  # fmt: skip
+    g = np.array([[1.7826881874513507, -0.9400366509852818, 5.105079502936946, -2.663631305229626,
+                   -3.7143266765691134]])  # fmt: skip
+    lower = np.array([0.0, -1.0, -1.0, -1.0, 0.0])
+    upper = np.array([np.inf, np.inf, np.inf, np.inf, 1.0])
+    x, solved = box_qp_frames(H, g, lower, upper, np.zeros((1, 5)))
+    assert solved.all() and np.isfinite(x).all()
+    L = np.linalg.cholesky(H).T  # H = Lᵀ L: ½xᵀHx − gᵀx = ½‖L x − L⁻ᵀ g‖² + const
+    np.testing.assert_allclose(x[0], reference(L, np.linalg.solve(L.T, g[0]), lower, upper), atol=1e-8)

@@ -128,8 +128,11 @@ def _box_qp(H, g, lower, upper, x):
                     i = free[p]
                     d = z[p] - x[i]
                     x[i] += alpha * d
-                    if p == first or x[i] <= lower[i] or x[i] >= upper[i]:
+                    if p == first:  # the bound it stepped to
                         x[i] = lower[i] if d < 0 else upper[i]
+                        is_free[i] = False
+                    elif x[i] <= lower[i] or x[i] >= upper[i]:  # the bound it reached (d may be 0)
+                        x[i] = lower[i] if x[i] <= lower[i] else upper[i]
                         is_free[i] = False
                 just_freed = -1
                 continue
