@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimetic.capture.expression import GAZE_CHANNELS, NOSE_CHANNELS, visible_channels
+from mimetic.capture.expression import GAZE_CHANNELS, NOSE_CHANNELS, library_directions, visible_channels
 from mimetic.engines.basis import Basis
 from mimetic.rig.anatomy.actions import CHANNELS as ACTION_CHANNELS
 
@@ -35,3 +35,14 @@ def test_visible_channels_leave_out_the_gaze_and_the_nose_muscles_unless_named()
 
 def test_nose_channels_are_channels_of_the_rig():
     assert set(NOSE_CHANNELS) <= set(ACTION_CHANNELS) and not set(NOSE_CHANNELS) & set(GAZE_CHANNELS)
+
+
+def test_library_directions_are_the_arkit_shapes_on_the_free_channels():
+    channels = ("orbicularis_oris", "frontalis_inner_L", "frontalis_inner_R", "gaze_pitch", "jaw_open")
+    basis, _ = _basis(channels)
+    free = np.array([0, 1, 2, 4])  # the gaze is not free
+    rows = {tuple(row) for row in library_directions(basis, free)}
+    assert (1.0, 0.0, 0.0, 0.0) in rows  # mouthPucker: its incisivis channels are not in this basis
+    assert (0.0, 1.0, 0.0, 0.0) in rows and (0.0, 0.0, 1.0, 0.0) in rows  # browInnerUp's halves
+    assert all(any(v != 0.0 for v in row) for row in rows)  # eyeLookDown (gaze only) is left out
+    assert len(rows) == len(library_directions(basis, free))  # no shape twice

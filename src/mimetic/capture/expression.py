@@ -255,3 +255,21 @@ def resolve_channels(
             f"the rig has no channel(s) {', '.join(unknown[:5])}; `mimetic list channels RIG` lists them"
         )
     return names
+
+
+def library_directions(basis: Basis, free: np.ndarray) -> np.ndarray:
+    """(r, k) float64: the ARKit table's 52 shapes (``animate.arkit``; browInnerUp and cheekPuff as
+    their ``_L``/``_R`` halves) as activations of the basis channels ``free`` (k,), the shapes that
+    move none of them left out. The video solve's library prior keeps the face near the cone of
+    their non-negative combinations: the table says which channels act together (a pucker's lips
+    push forward as they narrow), which is what one camera cannot see."""
+    from mimetic.animate.arkit import arkit_table, arkit_values
+
+    rows = []
+    for shape in arkit_table().values():
+        names = [f"{shape.name}_{s}" for s in "LR"] if shape.halves else [shape.name]
+        for name in names:
+            values = arkit_values({name: 1.0})
+            rows.append([values.get(basis.channels[j], 0.0) for j in free])
+    directions = np.array(rows, dtype=np.float64).reshape(-1, len(free))
+    return np.unique(directions[np.abs(directions).sum(axis=1) > 0], axis=0)
