@@ -328,7 +328,8 @@ def solve_performance(
         The ridge λ and the L1 weight of the expression solve (``capture.expression``).
     shape_prior : float or None
         The shape prior's weight ν; None ties it to the misfit, ν = (σ_e / τ)² (``SHAPE_MOTION_REL``),
-        remeasured after every solve; 0 solves without it.
+        remeasured after every solve; 0 solves without it. Image landmarks add the library prior at
+        ``reprojection.LIBRARY_GAIN`` times ν (none with 0).
     robust : bool
         Reject spikes and gross errors.
     place : bool or None
