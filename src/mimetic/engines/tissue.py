@@ -132,10 +132,14 @@ VOLUME_STIFFNESS = 2.0
 """Weight of a prism's volume term over its layer's modulus times its volume."""
 RESTORATION_HZ = 0.5
 """Nodal restoration: a node alone on its zero-length spring to rest would swing at this frequency."""
-LOOSE_ANCHOR = 0.1
+LOOSE_ANCHOR = 1.0
 """A skull node the volume leaves loose (under the lips) is tied to its rest place by this × its
 elastic weight (its diagonal of ``Aᵀ W A``): the lips' inner side is bound to the gums by their
-lining, so the lips hang and roll but do not drift."""
+lining, so the lips hang and roll but do not drift. At 0.1 the thin, loose tissue at the mouth's
+corners took the motion of several muscles pulling at once (``weeping``: the triangularis and the
+platysma dragged the lower lip's upper face round the corner until it faced the midline): 33 lip
+triangles of ICT-FaceKit's ``weeping`` turned over, 6 at 1.0 (12 at 0.3); the default generated
+head's flips do not change (110 → 111 over the library)."""
 SKULL_GAP = 0.25
 """A fascia node stays at least this fraction of its rest height above its skull node."""
 SKULL_WEIGHT = 1.0
