@@ -32,10 +32,10 @@ Model (Lee et al. §3; values are module constants):
   prism's shape term sees only its mean gradient, not its top triangle: over the thin tissue of
   the inner lip and the mouth's corners (cut back to a fifth of the thickness, on loose skull
   nodes) the skin creased into tiny folds and turned over (lip triangles flipped over the
-  expression library: 763 → 53 on ICT-FaceKit), the corners tore and the upper lip everted in a
-  smile. Linear in the displacement, so it adds to the global matrix and costs nothing per
-  iteration; the physics runs in the head's rest frame, where the skin turns by tens of degrees at
-  most (the jaw and lids are bones, applied after it).
+  expression library: 763 → 58 on ICT-FaceKit), the corners tore and the upper lip everted in a
+  smile. Linear in the displacement, so it joins the prefactored global matrix (a little more
+  fill) and adds one sparse product per iteration; the physics runs in the head's rest frame,
+  where the skin turns by tens of degrees at most (the jaw and lids are bones, applied after it).
 * **Skull contact** (§3.7): each fascia node over a pinned skull node stays on the outer side of
   the plane through its skull node across its normal, ``SKULL_GAP`` of its rest height above it,
   and slides along it freely. The skull nodes the volume leaves loose (under the lips: no bone)
@@ -123,8 +123,10 @@ BENDING_THICKNESS_REL = 0.025
 """The skin bends as a plate of the epidermal springs' modulus ``EPIDERMAL_E`` and this many head
 heights thick (5.8 mm on the physics' 23 cm head, about the tissue's median depth): bending
 stiffness ``D = E t³/12``. Chosen on ICT-FaceKit's neutral (automatic landmarks) and the default
-generated head: 0.011 (a tenth of the bending) left 50 of the 314 flipped lip triangles of four
-expressions on ICT; 0.053 (ten times) smoothed the lips further but flattened the pucker."""
+generated head (checked on ICT's landmark-file rig, an identity at σ 1 and σ 2, a random generated
+head): about 0.01 (a tenth of the bending) left 50 of the 314 lip triangles four expressions
+turned over on ICT (joy, weeping, pucker, sadness; 45 at this value); about 0.05 (ten times)
+smoothed the lips further but flattened the generated head's pucker."""
 SHAPE_STIFFNESS = 3.0
 """Weight of a prism's shape term over its layer's modulus (dermal-fatty or muscle layer) times
 its volume."""
