@@ -25,6 +25,17 @@ Model (Lee et al. §3; values are module constants):
   prism's volume. The shape term is what a spring network lacks: shear stiffness in the needle-thin
   prisms at the mouth's corners, where springs alone let nodes swing freely. An inverted prism is
   turned back (its nearest proper rotation, by SVD).
+* **Skin bending** (ours; the paper's skin is a spring mesh): the skin surface resists bending as a
+  plate of the epidermal modulus ``BENDING_THICKNESS_REL`` of the head thick,
+  ``w_i/2 |δ_i(x - X)|²`` per skin node for the uniform Laplacian ``δ_i`` of the displacement (the
+  mean of its neighbours' minus its own). A spring mesh folds along an edge at no cost, and a
+  prism's shape term sees only its mean gradient, not its top triangle: over the thin tissue of
+  the inner lip and the mouth's corners (cut back to a fifth of the thickness, on loose skull
+  nodes) the skin creased into tiny folds and turned over (lip triangles flipped over the
+  expression library: 763 → 58 on ICT-FaceKit), the corners tore and the upper lip everted in a
+  smile. Linear in the displacement, so it joins the prefactored global matrix (a little more
+  fill) and adds one sparse product per iteration; the physics runs in the head's rest frame,
+  where the skin turns by tens of degrees at most (the jaw and lids are bones, applied after it).
 * **Skull contact** (§3.7): each fascia node over a pinned skull node stays on the outer side of
   the plane through its skull node across its normal, ``SKULL_GAP`` of its rest height above it,
   and slides along it freely. The skull nodes the volume leaves loose (under the lips: no bone)
@@ -85,6 +96,7 @@ from mimetic.engines.projections import gathered_targets, prism_targets, spring_
 from mimetic.engines.skinning import bone_transforms, linear_blend_skinning
 from mimetic.engines.volume import TissueVolume, build_volume, triple_products
 from mimetic.errors import ActivationError, MimeticWarning
+from mimetic.mesh.geometry import vertex_adjacency
 from mimetic.rig.activations import check_activations
 from mimetic.rig.model import Rig
 
@@ -107,6 +119,14 @@ BIPHASIC_STRAIN = 0.2
 """Strain beyond which a dermal-fatty spring stiffens (stretched or compressed)."""
 BIPHASIC_RATIO = 5.0
 """A dermal-fatty spring's stiffness beyond ``BIPHASIC_STRAIN`` over its stiffness within it."""
+BENDING_THICKNESS_REL = 0.025
+"""The skin bends as a plate of the epidermal springs' modulus ``EPIDERMAL_E`` and this many head
+heights thick (5.8 mm on the physics' 23 cm head, about the tissue's median depth): bending
+stiffness ``D = E t³/12``. Chosen on ICT-FaceKit's neutral (automatic landmarks) and the default
+generated head (checked on ICT's landmark-file rig, an identity at σ 1 and σ 2, a random generated
+head): about 0.01 (a tenth of the bending) left 50 of the 314 lip triangles four expressions
+turned over on ICT (joy, weeping, pucker, sadness; 45 at this value); about 0.05 (ten times)
+smoothed the lips further but flattened the generated head's pucker."""
 SHAPE_STIFFNESS = 3.0
 """Weight of a prism's shape term over its layer's modulus (dermal-fatty or muscle layer) times
 its volume."""
@@ -114,10 +134,14 @@ VOLUME_STIFFNESS = 2.0
 """Weight of a prism's volume term over its layer's modulus times its volume."""
 RESTORATION_HZ = 0.5
 """Nodal restoration: a node alone on its zero-length spring to rest would swing at this frequency."""
-LOOSE_ANCHOR = 0.1
+LOOSE_ANCHOR = 1.0
 """A skull node the volume leaves loose (under the lips) is tied to its rest place by this × its
 elastic weight (its diagonal of ``Aᵀ W A``): the lips' inner side is bound to the gums by their
-lining, so the lips hang and roll but do not drift."""
+lining, so the lips hang and roll but do not drift. At 0.1 the thin, loose tissue at the mouth's
+corners took the motion of several muscles pulling at once (``weeping``: the triangularis and the
+platysma dragged the lower lip's upper face round the corner until it faced the midline): 33 lip
+triangles of ICT-FaceKit's ``weeping`` turned over, 6 at 1.0 (12 at 0.3); the default generated
+head's flips do not change (110 → 111 over the library)."""
 SKULL_GAP = 0.25
 """A fascia node stays at least this fraction of its rest height above its skull node."""
 SKULL_WEIGHT = 1.0
@@ -161,7 +185,8 @@ edges, its vertical edges and both diagonals of each quad."""
 class TissueModel:
     """The layered tissue of a ``TissueVolume``, prepared for projective dynamics (SI units).
 
-    The energy is ``Σ_r w_r/2 |A_r x - p_r(x)|² + Σ_i h_i/2 |x_i - X_i|²``: each row ``A_r`` of the
+    The energy is ``Σ_r w_r/2 |A_r x - p_r(x)|² + Σ_i h_i/2 |x_i - X_i|² + ½ tr((x - X)ᵀ B (x - X))``
+    (``B`` the skin's ``bending``): each row ``A_r`` of the
     sparse ``A`` (R, N) maps the node positions ``x`` (N, 3) to a 3-vector (a spring's edge, a
     column of a prism's deformation gradient, a contact node's position), ``p_r`` projects it onto
     its constraint, and ``w`` (R,) are the ``weights``. The rows come in three blocks (``blocks``):
@@ -187,6 +212,9 @@ class TissueModel:
         ``|F - V|²`` (V the nearest matrix of determinant 1; zeros without volume preservation).
     restoration : (N,) float64
         Zero-length spring to rest on each node, N/m.
+    bending : (N, N) scipy.sparse.csr_matrix
+        The skin's bending stiffness ``Lᵀ diag(w) L`` (N/m; ``skin_bending``), on the skin nodes only;
+        its rows sum to 0 (a translation does not bend).
     contact : (S,) int64
         Nodes kept on the outer side of a plane: the fascia over pinned skull nodes, then the loose
         skull nodes (on the teeth). ``contact_anchor`` (S, 3) m, a point of the plane (the skull
@@ -214,6 +242,7 @@ class TissueModel:
     shape_stiffness: np.ndarray
     volume_stiffness: np.ndarray
     restoration: np.ndarray
+    bending: sp.csr_matrix
     contact: np.ndarray
     contact_anchor: np.ndarray
     contact_normal: np.ndarray
@@ -225,7 +254,9 @@ class TissueModel:
     A: sp.csr_matrix = field(repr=False)
     weights: np.ndarray = field(repr=False)
     _pinned_pull: np.ndarray = field(repr=False)  # (f, 3) A[:, free]ᵀ W A[:, pinned] rest[pinned]
-    _matrix: sp.csc_matrix = field(repr=False)  # (f, f) A[:, free]ᵀ W A[:, free] + diag(h)
+    _bending_free: sp.csr_matrix = field(repr=False)  # (f, f) B[free][:, free] (B is 0 on pinned nodes)
+    _bending_pull: np.ndarray = field(repr=False)  # (f, 3) B[free][:, free] rest[free]
+    _matrix: sp.csc_matrix = field(repr=False)  # (f, f) A[:, free]ᵀ W A[:, free] + diag(h) + B[free][:, free]
     _factors: dict = field(repr=False)  # inertia coefficient -> Cholesky factor
 
     @property
@@ -266,6 +297,31 @@ def prism_volumes(nodes: np.ndarray, prisms: np.ndarray) -> np.ndarray:
         for i, j, m in ((0, 1, 2), (0, 2, 3), (0, 1, 3), (1, 2, 3)):  # both triangulations, halved
             total += 0.5 * triple_products(q[i], q[j], q[m])
     return total / 6.0
+
+
+def skin_bending(volume: TissueVolume, rest: np.ndarray, thickness: float) -> sp.csr_matrix:
+    """The skin's bending stiffness (N, N) ``Lᵀ diag(w) L`` over the nodes ``rest`` (N, 3) (metres) of
+    ``volume``: ``L`` (k, N) the uniform Laplacian of the skin triangles (a skin node's neighbours'
+    mean minus itself), ``w_i = 16 D a_i / h_i⁴`` N/m for the plate's bending stiffness ``D = E t³/12``
+    (``E = EPIDERMAL_E``, ``t = thickness`` m), the skin area ``a_i`` around node ``i`` and its mean
+    edge length ``h_i``: on a regular mesh ``δ_i ≈ h_i² ∇²u / 4``, so ``Σ w_i/2 |δ_i|²`` is the plate's
+    ``∫ D/2 (∇²u)² dA`` whatever the resolution."""
+    n, k = volume.n_nodes, volume.n_skin
+    adjacency = vertex_adjacency(volume.triangles, k)  # (k, k)
+    degree = np.asarray(adjacency.sum(axis=1)).ravel()
+    laplacian = (sp.diags(1.0 / np.maximum(degree, 1.0)) @ adjacency - sp.eye(k)).tocsr()
+    i, j = sp.triu(adjacency).nonzero()
+    length = np.linalg.norm(rest[i] - rest[j], axis=1)
+    mean_edge = np.bincount(np.r_[i, j], np.r_[length, length], k) / np.maximum(degree, 1.0)
+    corners = rest[volume.triangles]  # (m, 3, 3)
+    area = 0.5 * np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+    around = np.bincount(volume.triangles.ravel(), np.repeat(area / 3.0, 3), k)
+    plate = EPIDERMAL_E * thickness**3 / 12.0  # D, N·m
+    w = 16.0 * plate * around / np.maximum(mean_edge, 1e-12) ** 4  # (k,) N/m
+    B = (laplacian.T @ sp.diags(w) @ laplacian).tocoo()
+    return sp.csr_matrix((B.data, (B.row, B.col)), shape=(n, n))
 
 
 def _spring_rows(edges: np.ndarray, n: int) -> sp.csr_matrix:
@@ -357,6 +413,10 @@ def prepare_tissue(
     loose = np.flatnonzero(~pinned[2 * k :]) + 2 * k
     restoration[loose] += LOOSE_ANCHOR * diagonal[loose]
 
+    # 4. the skin's bending (on skin nodes, never pinned)
+    bending = skin_bending(volume, rest, BENDING_THICKNESS_REL * HEAD_HEIGHT_M)
+    bending_free = bending[free][:, free].tocsr()
+
     A = sp.vstack([elastic, contact_rows]).tocsr()
     weights = np.concatenate([w, contact_stiffness])
     free_rows = A[:, free].tocsr()
@@ -377,6 +437,7 @@ def prepare_tissue(
         shape_stiffness=shape_stiffness,
         volume_stiffness=volume_stiffness,
         restoration=restoration,
+        bending=bending,
         contact=contact,
         contact_anchor=anchor,
         contact_normal=normal,
@@ -384,7 +445,8 @@ def prepare_tissue(
         contact_stiffness=contact_stiffness,
     )
     for array in arrays.values():
-        array.setflags(write=False)
+        if isinstance(array, np.ndarray):
+            array.setflags(write=False)
     log.debug(
         "tissue: %d nodes (%d free), %d springs, %d prisms, %d contacts",
         n,
@@ -401,7 +463,9 @@ def prepare_tissue(
         A=A,
         weights=weights,
         _pinned_pull=gather @ (A[:, np.flatnonzero(pinned)] @ rest[pinned]),
-        _matrix=(gather @ free_rows + sp.diags(restoration[free])).tocsc(),
+        _bending_free=bending_free,
+        _bending_pull=bending_free @ rest[free],
+        _matrix=(gather @ free_rows + sp.diags(restoration[free]) + bending_free).tocsc(),
         _factors={},
     )
 
@@ -472,23 +536,24 @@ def project(model: TissueModel, ax: np.ndarray) -> np.ndarray:
 def internal_forces(model: TissueModel, x: np.ndarray) -> np.ndarray:
     """The tissue's own forces (N, 3) on its nodes at positions ``x`` (N, 3) metres, newtons.
 
-    Springs and prism terms, ``-Aᵀ W (A x - p(A x))`` over their rows: they act between nodes, so
-    they sum to zero; a pinned node's entry is the force on the bone there. The ties to the ground
-    (restoration, skull contact) are not included.
+    Springs and prism terms, ``-Aᵀ W (A x - p(A x))`` over their rows, and the skin's bending
+    ``-B (x - X)``: they act between nodes, so they sum to zero; a pinned node's entry is the force
+    on the bone there. The ties to the ground (restoration, skull contact) are not included.
     """
     ax = model.A @ x
     tissue = slice(0, model.blocks[1].stop)
     r = (ax[tissue] - project(model, ax)[tissue]) * model.weights[tissue, None]
-    return -(model.A[tissue].T @ r)
+    return -(model.A[tissue].T @ r) - model.bending @ (x - model.rest)
 
 
 def energy(model: TissueModel, x: np.ndarray, v: np.ndarray | None = None) -> float:
-    """Potential (springs, prisms, skull contact, restoration) plus kinetic energy, joules.
+    """Potential (springs, prisms, skin bending, skull contact, restoration) plus kinetic energy, joules.
 
     ``x`` (N, 3) metres; ``v`` (N, 3) m/s, or None for none.
     """
     d = x - model.rest
     potential = _local(model, model.A @ x)[1] + 0.5 * np.einsum("n,ni,ni->", model.restoration, d, d)
+    potential += 0.5 * np.einsum("ni,ni->", d, model.bending @ d)
     kinetic = 0.0 if v is None else 0.5 * np.einsum("n,ni,ni->", model.mass, v, v)
     return float(potential + kinetic)
 
@@ -529,9 +594,10 @@ def _iterations(
     """Local/global iterations from ``x`` (N, 3) until no free node moves ``TOLERANCE_M``, at most
     ``limit``; returns the positions and each step (metres).
 
-    Minimises ``Φ(x) = Σ w/2 |A x - p|² + Σ (h + inertia m)/2 |x|² - x · constant`` over the free
-    nodes: ``constant`` (f, 3) holds the free rows of ``inertia M s + f + diag(h) X`` (the inertia
-    ``inertia/2 |x - s|²_M``, the forces and the restoration, up to a constant). Every PD iteration
+    Minimises ``Φ(x) = Σ w/2 |A x - p|² + Σ (h + inertia m)/2 |x|² - x · constant + ½ (x - X)ᵀ B (x - X)``
+    over the free nodes: ``constant`` (f, 3) holds the free rows of ``inertia M s + f + diag(h) X``
+    (the inertia ``inertia/2 |x - s|²_M``, the forces and the restoration, up to a constant); the
+    bending ``B`` is in the matrix and its pull ``B X`` is added here. Every PD iteration
     (local step, then one solve with the constant matrix) lowers Φ; an Anderson iterate (the last
     ``ANDERSON_DEPTH`` steps mixed) is kept only if it lowers Φ too.
     """
@@ -539,13 +605,15 @@ def _iterations(
     free = model.free
     diagonal = (model.restoration + inertia * model.mass)[free, None]
 
-    known = constant - model._pinned_pull  # the right-hand side's constant part
+    bending, bending_pull = model._bending_free, model._bending_pull
+    known = constant - model._pinned_pull + bending_pull  # the right-hand side's constant part
     positions, gathered = model.rest.copy(), np.empty_like(x)  # the pinned nodes at rest, as _pinned_pull
 
     def local(xf: np.ndarray) -> tuple[np.ndarray, float]:
         positions[free] = xf
         constraints = _gathered_local(model, positions, gathered)
-        phi = constraints + np.einsum("fi,fi->", 0.5 * diagonal * xf - constant, xf)
+        linear = 0.5 * diagonal * xf - constant + 0.5 * (bending @ xf) - bending_pull
+        phi = constraints + np.einsum("fi,fi->", linear, xf)
         return gathered[free] + known, phi
 
     xf = x[free]
@@ -659,8 +727,8 @@ def rest_stiffness(model: TissueModel) -> sp.csr_matrix:
 
     A spring stiffens only along itself (``w n nᵀ``), its stiff phase not at all (slack within the
     strain limit); a prism's shape term resists its strain, ``w_s |sym δF|²`` (not a turn), its
-    volume term a change of volume, ``w_v/3 (tr δF)²``, with ``δF = Σ_a δx_a g_aᵀ``; the
-    restoration holds every node; the skull contact is slack.
+    volume term a change of volume, ``w_v/3 (tr δF)²``, with ``δF = Σ_a δx_a g_aᵀ``; the skin's
+    bending is ``B`` on each axis; the restoration holds every node; the skull contact is slack.
     """
     n = model.n_nodes
     axes = np.arange(3)
@@ -684,7 +752,8 @@ def rest_stiffness(model: TissueModel) -> sp.csr_matrix:
         (hessian.ravel(), (np.repeat(dof, 18, axis=1).ravel(), np.tile(dof, (1, 18)).ravel())),
         shape=(3 * n, 3 * n),
     )
-    return (springs.tocsr() + prisms.tocsr() + sp.diags(np.repeat(model.restoration, 3))).tocsr()
+    bending = sp.kron(model.bending, sp.eye(3), format="csr")  # row 3 j + axis, as the others
+    return (springs.tocsr() + prisms.tocsr() + sp.diags(np.repeat(model.restoration, 3)) + bending).tocsr()
 
 
 # --------------------------------------------------------------------------- the engine
