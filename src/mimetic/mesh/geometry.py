@@ -9,6 +9,8 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.sparse.linalg import spsolve
 
+from mimetic.mesh.memo import per_arrays
+
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray, *, unit: bool = True) -> np.ndarray:
     """Normals (m, 3) float64 of triangles ``faces`` (m, 3) over ``vertices`` (n, 3).
@@ -36,7 +38,9 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 # These take ``faces`` (m, 3) int64 only, so they serve the loader, the validator, the head
 # generator and the fitting code alike. Edges are undirected and stored as sorted pairs (i < j).
 # An "edge" whose two ends are the same vertex (from a degenerate face such as (4, 4, 7)) is
-# not an edge: every function here leaves it out.
+# not an edge: every function here leaves it out. The edges, the boundary and the pieces of a
+# ``Mesh``'s faces (read-only arrays) are computed once per faces array (``mesh.memo``) and handed
+# out read-only.
 
 
 class BoundaryPaths(NamedTuple):
@@ -91,6 +95,7 @@ def _half_edges(faces: np.ndarray) -> np.ndarray:
     return faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
 
 
+@per_arrays(1)
 def edges_with_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unique undirected edges of ``faces`` and how many faces use each.
 
@@ -196,6 +201,7 @@ def smooth_field(
     return out
 
 
+@per_arrays(1)
 def connected_components(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     """Connected components of ``n`` vertices joined by the edges of ``faces`` (m, 3).
 
@@ -244,6 +250,7 @@ def boundary_paths(faces: np.ndarray) -> BoundaryPaths:
     )
 
 
+@per_arrays(1)
 def boundary_edges(faces: np.ndarray) -> np.ndarray:
     """Edges (b, 2) int64 used by exactly one face of ``faces`` (m, 3), as that face walks them.
 

@@ -51,6 +51,7 @@ from mimetic.mesh.geometry import (
     face_normals,
     vertex_normals,
 )
+from mimetic.mesh.memo import per_arrays
 
 __all__ = [
     "DepthMap",
@@ -154,9 +155,11 @@ class Opening:
         return (along > inset) & (along < 1 - inset)
 
 
+@per_arrays(2)
 def skin_faces(vertices: np.ndarray, faces: np.ndarray, *, labels: np.ndarray | None = None) -> np.ndarray:
     """The faces (f, 3) of the largest connected piece of the mesh by area: the skin. ``labels`` (n,):
-    the pieces (``connected_components(faces, n)[1]``), when the caller has them."""
+    the pieces (``connected_components(faces, n)[1]``), when the caller has them. Read-only, and
+    computed once per (``vertices``, ``faces``) of a ``Mesh`` (``mesh.memo``)."""
     if labels is None:
         _, labels = connected_components(faces, len(vertices))
     face_label = labels[faces[:, 0]]
