@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import cg, splu
+from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from mimetic.errors import MeshError
@@ -219,6 +219,37 @@ def umbrella_laplacian(faces: np.ndarray, n: int) -> sp.csr_matrix:
     return (sp.identity(n, format="csr") - sp.diags(inv) @ adjacency).tocsr()
 
 
+def _cg(
+    system: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, inverse_diagonal: np.ndarray
+) -> tuple[np.ndarray, bool]:
+    """``scipy.sparse.linalg.cg(system, b, x0=x0, rtol=CG_RTOL, maxiter=CG_MAXITER, M=M)`` with ``M``
+    the diagonal ``inverse_diagonal`` (n,), step for step with the same arithmetic (so the same bits)
+    but without its operator wrappers, which were a fifth of the registration's solves. Returns the
+    solution (n,) and whether it converged."""
+    x = x0.copy()
+    atol = CG_RTOL * np.linalg.norm(b)
+    if atol == 0:
+        return b.copy(), True
+    r = b - system @ x if x.any() else b.copy()  # the residual
+    p, rho_prev = r, 1.0
+    for iteration in range(CG_MAXITER):
+        if np.linalg.norm(r) < atol:
+            return x, True
+        z = inverse_diagonal * r  # Jacobi preconditioner
+        rho = np.dot(r, z)
+        if iteration > 0:
+            p *= rho / rho_prev
+            p += z
+        else:
+            p = z.copy()
+        q = system @ p
+        alpha = rho / np.dot(p, q)
+        x += alpha * p
+        r -= alpha * q
+        rho_prev = rho
+    return x, False
+
+
 def _solve_spd(system: sp.csr_matrix, rhs: np.ndarray, guess: np.ndarray) -> np.ndarray:
     """Solve the SPD ``system`` (n, n) for each column of ``rhs`` (n, 3).
 
@@ -228,13 +259,11 @@ def _solve_spd(system: sp.csr_matrix, rhs: np.ndarray, guess: np.ndarray) -> np.
     leaves it badly conditioned and CG stalls; then a sparse LU factorisation (symmetric mode)
     solves it directly, in about 0.2 s for 10k vertices.
     """
-    precondition = sp.diags(1.0 / system.diagonal())
+    inverse_diagonal = 1.0 / system.diagonal()
     out = np.empty_like(rhs)
     for d in range(rhs.shape[1]):
-        out[:, d], info = cg(
-            system, rhs[:, d], x0=guess[:, d], rtol=CG_RTOL, maxiter=CG_MAXITER, M=precondition
-        )
-        if info != 0:
+        out[:, d], converged = _cg(system, rhs[:, d], guess[:, d], inverse_diagonal)
+        if not converged:
             lu = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
             return lu.solve(rhs)
     return out
