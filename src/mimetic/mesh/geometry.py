@@ -12,10 +12,12 @@ from scipy.sparse.linalg import spsolve
 from mimetic.mesh.memo import per_arrays
 
 
+@per_arrays(2, copies=True)
 def face_normals(vertices: np.ndarray, faces: np.ndarray, *, unit: bool = True) -> np.ndarray:
     """Normals (m, 3) float64 of triangles ``faces`` (m, 3) over ``vertices`` (n, 3).
 
-    With ``unit=False`` each normal's length is twice the triangle's area.
+    With ``unit=False`` each normal's length is twice the triangle's area. Computed once per
+    (``vertices``, ``faces``) of a ``Mesh`` (``mesh.memo``), a new array each call.
     """
     tri = vertices[faces]  # (m, 3, 3)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # (m, 3)
@@ -25,8 +27,10 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray, *, unit: bool = True) 
     return n
 
 
+@per_arrays(2, copies=True)
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (n, 3) float64; unused vertices get (0, 0, 0)."""
+    """Area-weighted unit vertex normals (n, 3) float64; unused vertices get (0, 0, 0). Computed once
+    per (``vertices``, ``faces``) of a ``Mesh`` (``mesh.memo``), a new array each call."""
     fn = face_normals(vertices, faces, unit=False)  # (m, 3), |fn| = 2 area
     corner = faces.ravel()  # (3m,)
     out = np.stack([np.bincount(corner, np.repeat(fn[:, d], 3), len(vertices)) for d in range(3)], axis=1)

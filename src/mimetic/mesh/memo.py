@@ -44,25 +44,27 @@ def _readonly(value: object) -> object:
     return value
 
 
-def per_arrays(arrays: int) -> Callable[[F], F]:
-    """Remember ``function(*args)`` per identity of its first ``arrays`` arguments (when all are
-    ``frozen``) and the value of the others (hashable); keyword arguments are not remembered.
-    Returned arrays (alone or in a tuple) are made read-only."""
+def per_arrays(arrays: int, *, copies: bool = False) -> Callable[[F], F]:
+    """Remember ``function(*args, **kwargs)`` per identity of its first ``arrays`` arguments (when
+    all are ``frozen``) and the values of the others (hashable). Returned arrays (alone or in a tuple)
+    are read-only, or with ``copies`` a fresh copy of a remembered array (for a function whose
+    callers may change what it returns)."""
 
     def wrap(function: F) -> F:
         @functools.wraps(function)
         def remembered(*args, **kwargs):
             key_arrays = args[:arrays]
-            if kwargs or len(key_arrays) < arrays or not all(frozen(a) for a in key_arrays):
+            if len(key_arrays) < arrays or not all(frozen(a) for a in key_arrays):
                 return function(*args, **kwargs)
-            key = (function.__qualname__, *map(id, key_arrays), *args[arrays:])
+            key = (function.__qualname__, *map(id, key_arrays), *args[arrays:], *sorted(kwargs.items()))
             hit = _results.get(key)
             if hit is not None and all(ref() is a for ref, a in zip(hit[0], key_arrays, strict=True)):
-                return hit[1]
-            value = _readonly(function(*args))
-            forget = functools.partial(_forget, key)
-            _results[key] = ([weakref.ref(a, forget) for a in key_arrays], value)
-            return value
+                value = hit[1]
+            else:
+                value = _readonly(function(*args, **kwargs))
+                forget = functools.partial(_forget, key)
+                _results[key] = ([weakref.ref(a, forget) for a in key_arrays], value)
+            return value.copy() if copies else value
 
         return remembered  # type: ignore[return-value]
 
