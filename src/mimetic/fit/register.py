@@ -219,6 +219,20 @@ def umbrella_laplacian(faces: np.ndarray, n: int) -> sp.csr_matrix:
     return (sp.identity(n, format="csr") - sp.diags(inv) @ adjacency).tocsr()
 
 
+def _with_diagonal(matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``matrix`` (n, n) in canonical CSR (sorted, no stored zeros: as ``sp.diags(d) + matrix`` is
+    summed) and where its diagonal entries are in its ``data`` (n,), so the registration's system
+    ``diags(d) + α matrix`` is a scaled copy with ``d`` added there rather than a sparse sum per solve.
+    Every diagonal entry must be stored (LᵀL's are: sums of squares)."""
+    out = matrix.tocsr()
+    out.sum_duplicates()
+    out.eliminate_zeros()
+    rows = np.repeat(np.arange(out.shape[0]), np.diff(out.indptr))
+    diagonal_at = np.flatnonzero(rows == out.indices)
+    assert len(diagonal_at) == out.shape[0], "a diagonal entry of LᵀL is not stored"
+    return out, diagonal_at
+
+
 def _cg(
     system: sp.csr_matrix, b: np.ndarray, x0: np.ndarray, inverse_diagonal: np.ndarray
 ) -> tuple[np.ndarray, bool]:
@@ -308,6 +322,7 @@ def register(
     lap = umbrella_laplacian(faces, n)
     ltl = (lap.T @ lap).tocsc()
     ltl_x0 = ltl @ x0
+    smooth, diagonal_at = _with_diagonal(ltl)  # the systems' pattern: LᵀL's, the diagonal among it
     tree = cKDTree(target.points)
     lm = np.zeros(0, np.int64) if landmarks is None else np.asarray(landmarks, dtype=np.int64)
     lm_w = np.ones(len(lm)) if landmark_weights is None else np.asarray(landmark_weights, dtype=np.float64)
@@ -343,7 +358,9 @@ def register(
                 on = curve.polyline[seg] + t[:, None] * (curve.polyline[seg + 1] - curve.polyline[seg])
                 np.add.at(diag, curve.vertices, pull)
                 np.add.at(rhs, curve.vertices, pull * on)
-            system = (sp.diags(diag) + stage.stiffness * ltl).tocsr()
+            system = smooth.copy()  # diag(W + β S) + α LᵀL, entry for entry as scipy adds them
+            system.data *= stage.stiffness
+            system.data[diagonal_at] += diag
             x = _solve_spd(system, rhs + stage.stiffness * ltl_x0, x)
             done += 1
             if progress is not None:
