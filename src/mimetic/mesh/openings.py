@@ -184,20 +184,37 @@ def gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.nd
     return rim
 
 
+@per_arrays(2)
+def _face_boxes(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each face's bounds in x and y, (f, 4): x min, x max, y min, y max (remembered per mesh)."""
+    corners = vertices[faces]  # (f, 3, 3)
+    x, y = corners[:, :, 0], corners[:, :, 1]
+    return np.column_stack([x.min(axis=1), x.max(axis=1), y.min(axis=1), y.max(axis=1)])
+
+
+@per_arrays(2)
+def _face_centres(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each face's centroid (f, 3) (remembered per mesh)."""
+    return vertices[faces].mean(axis=1)
+
+
 def front_depth(
-    vertices: np.ndarray, faces: np.ndarray, low: np.ndarray, high: np.ndarray, step: float
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    step: float,
+    *,
+    keep: np.ndarray | None = None,
 ) -> DepthMap:
-    """The depth of ``faces`` seen along −Z over the grid from ``low`` to ``high`` ((2,) x and y) with
-    spacing ``step``, mesh units."""
+    """The depth of ``faces`` (only those of ``keep`` (f,) bool, when given) seen along −Z over the grid
+    from ``low`` to ``high`` ((2,) x and y) with spacing ``step``, mesh units."""
     x = np.arange(low[0], high[0] + step / 2, step)
     y = np.arange(low[1], high[1] + step / 2, step)
-    corners = vertices[faces]  # (f, 3, 3)
-    inside = (
-        (corners[:, :, 0].max(axis=1) >= low[0])
-        & (corners[:, :, 0].min(axis=1) <= high[0])
-        & (corners[:, :, 1].max(axis=1) >= low[1])
-        & (corners[:, :, 1].min(axis=1) <= high[1])
-    )
+    box = _face_boxes(vertices, faces)  # (f, 4)
+    inside = (box[:, 1] >= low[0]) & (box[:, 0] <= high[0]) & (box[:, 3] >= low[1]) & (box[:, 2] <= high[1])
+    if keep is not None:
+        inside &= keep
     z = np.full((len(y), len(x)), np.nan)
     if not inside.any():
         return DepthMap(x, y, z)
@@ -339,12 +356,15 @@ def eye_opening(
     Opening, or None when there is no opening near the corners.
     """
     corners = np.asarray(corners, dtype=np.float64)
+    seen = None
     if ball is not None:
-        faces = faces[np.linalg.norm(vertices[faces].mean(axis=1) - ball[0], axis=1) >= HIDDEN_REL * ball[1]]
+        seen = np.linalg.norm(_face_centres(vertices, faces) - ball[0], axis=1) >= HIDDEN_REL * ball[1]
     width = float(np.linalg.norm(corners[1] - corners[0]))
     middle = corners.mean(axis=0)
     half = np.array(EYE_WINDOW_REL) * width
-    depth = front_depth(vertices, faces, middle[:2] - half, middle[:2] + half, EYE_STEP_REL * width)
+    depth = front_depth(
+        vertices, faces, middle[:2] - half, middle[:2] + half, EYE_STEP_REL * width, keep=seen
+    )
     labels = _pieces(depth.z, JUMP_REL * width)
     border = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])
     hole = labels != np.bincount(border).argmax()
