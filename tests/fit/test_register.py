@@ -54,3 +54,23 @@ def test_fit_reference_on_a_triangle_soup_raises_mesh_error() -> None:
     names = [n for n in head.landmarks if not n.startswith("pupil")]
     with pytest.raises(MeshError, match="weld its vertices"):
         fit_reference(_soup(head.mesh), names, head.landmark_positions(names))
+
+
+def test_cg_takes_scipy_s_steps_bit_for_bit() -> None:
+    """``register._cg`` is scipy's Jacobi-preconditioned cg without its wrappers: the same bits."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import cg
+
+    from mimetic.fit.register import CG_MAXITER, CG_RTOL, _cg
+
+    rng = np.random.default_rng(0)
+    n = 300
+    lap = sp.random(n, n, density=0.02, random_state=1)
+    system = (lap @ lap.T + sp.diags(rng.uniform(0.5, 2.0, n))).tocsr()
+    b, guess = rng.normal(size=n), rng.normal(size=n)
+    inverse = 1.0 / system.diagonal()
+    expected, info = cg(system, b, x0=guess, rtol=CG_RTOL, maxiter=CG_MAXITER, M=sp.diags(inverse))
+    found, converged = _cg(system, b, guess, inverse)
+    assert info == 0 and converged
+    np.testing.assert_array_equal(found, expected)
+    assert np.array_equal(_cg(system, np.zeros(n), guess, inverse)[0], np.zeros(n))
