@@ -170,10 +170,16 @@ def skin_faces(vertices: np.ndarray, faces: np.ndarray, *, labels: np.ndarray | 
 def gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.ndarray:
     """Vertices (n,) bool where the surface, seen along ``gaze`` (3,), ends or turns away: on a boundary
     edge, or shared by a face facing the viewer (n · gaze > 0) and one facing away. A lid margin is
-    such a rim: the skin ends at an eye hole or folds back into the eye socket there."""
+    such a rim: the skin ends at an eye hole or folds back into the eye socket there. (Found once per
+    mesh and gaze, ``mesh.memo``; a new array each call.)"""
+    return _gaze_rim(vertices, faces, *(float(g) for g in np.asarray(gaze, dtype=np.float64).reshape(3)))
+
+
+@per_arrays(2, copies=True)
+def _gaze_rim(vertices: np.ndarray, faces: np.ndarray, *gaze: float) -> np.ndarray:
     n = len(vertices)
     normals = face_normals(vertices, faces, unit=False)
-    facing = normals @ gaze
+    facing = normals @ np.array(gaze)
     has_area = np.linalg.norm(normals, axis=1) > 0
     front = np.zeros(n, dtype=bool)
     back = np.zeros(n, dtype=bool)
