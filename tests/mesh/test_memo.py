@@ -79,3 +79,14 @@ def test_remembered_normals_are_fresh_copies():
     a[:] = 0.0  # the caller's own array
     np.testing.assert_array_equal(face_normals(mesh.vertices, mesh.faces), b)
     np.testing.assert_array_equal(b, face_normals(np.array(mesh.vertices), np.array(mesh.faces)))
+
+
+def test_per_arrays_computes_anew_when_an_option_is_not_a_value():
+    """An array passed as an option (``skin_faces(..., labels=labels)``) is not a key: no error, no entry."""
+    from mimetic.mesh.geometry import connected_components
+    from mimetic.mesh.openings import skin_faces
+
+    mesh = tetrahedron()
+    _, labels = connected_components(np.array(mesh.faces), mesh.n_vertices)
+    np.testing.assert_array_equal(skin_faces(mesh.vertices, mesh.faces, labels=labels), mesh.faces)
+    assert not any(key[0] is skin_faces.__wrapped__ for key in memo._results)

@@ -46,9 +46,9 @@ def _readonly(value: object) -> object:
 
 def per_arrays(arrays: int, *, copies: bool = False) -> Callable[[F], F]:
     """Remember ``function(*args, **kwargs)`` per identity of its first ``arrays`` arguments (when
-    all are ``frozen``) and the values of the others (hashable). Returned arrays (alone or in a tuple)
-    are read-only, or with ``copies`` a fresh copy of a remembered array (for a function whose
-    callers may change what it returns)."""
+    all are ``frozen``) and the values of the others (when all are hashable). Returned arrays (alone
+    or in a tuple) are read-only, or with ``copies`` a fresh copy of a remembered array (for a
+    function whose callers may change what it returns)."""
 
     def wrap(function: F) -> F:
         @functools.wraps(function)
@@ -56,7 +56,11 @@ def per_arrays(arrays: int, *, copies: bool = False) -> Callable[[F], F]:
             key_arrays = args[:arrays]
             if len(key_arrays) < arrays or not all(frozen(a) for a in key_arrays):
                 return function(*args, **kwargs)
-            key = (function.__qualname__, *map(id, key_arrays), *args[arrays:], *sorted(kwargs.items()))
+            key = (function, *map(id, key_arrays), *args[arrays:], *sorted(kwargs.items()))
+            try:
+                hash(key)
+            except TypeError:  # an argument that is not a value (an array passed as an option)
+                return function(*args, **kwargs)
             hit = _results.get(key)
             if hit is not None and all(ref() is a for ref, a in zip(hit[0], key_arrays, strict=True)):
                 value = hit[1]
