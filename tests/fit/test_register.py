@@ -54,3 +54,29 @@ def test_fit_reference_on_a_triangle_soup_raises_mesh_error() -> None:
     names = [n for n in head.landmarks if not n.startswith("pupil")]
     with pytest.raises(MeshError, match="weld its vertices"):
         fit_reference(_soup(head.mesh), names, head.landmark_positions(names))
+
+
+def test_solve_spd_takes_scipy_s_cg_steps_bit_for_bit() -> None:
+    """``register._solve_spd`` runs scipy's Jacobi-preconditioned cg on the three columns side by side
+    (one compiled product for the three): each column the same bits as scipy's, a zero column zero."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import cg
+
+    from mimetic.fit.register import CG_MAXITER, CG_RTOL, _solve_spd
+
+    rng = np.random.default_rng(0)
+    n = 300
+    lap = sp.random(n, n, density=0.02, random_state=1)
+    system = (lap @ lap.T + sp.diags(rng.uniform(0.5, 2.0, n))).tocsr()
+    rhs, guess = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    rhs[:, 2] = 0.0
+    found = _solve_spd(system, rhs, guess)
+    assert found.shape == (n, 3) and found.dtype == np.float64
+    preconditioner = sp.diags(1.0 / system.diagonal())
+    for d in range(2):
+        expected, info = cg(
+            system, rhs[:, d], x0=guess[:, d], rtol=CG_RTOL, maxiter=CG_MAXITER, M=preconditioner
+        )
+        assert info == 0
+        np.testing.assert_array_equal(found[:, d], expected)
+    np.testing.assert_array_equal(found[:, 2], 0.0)

@@ -29,3 +29,29 @@ def test_a_degenerate_triangle_gives_finite_barycentric_coordinates():
     np.testing.assert_allclose(found.bary.sum(axis=1), 1.0)
     assert found.faces[1] in (0, 1)  # over the square: the square's own triangle
     assert found.faces[0] == 2 and found.bary[0, 2] == 1.0  # nearest the collinear corner at (3, 3)
+
+
+def test_closest_on_triangles_gives_trimesh_s_points_bit_for_bit():
+    """The compiled pass (``mesh.kernels``) against ``trimesh.triangles.closest_point``, on a sphere and
+    on degenerate triangles (coincident corners, a point, collinear corners)."""
+    from mimetic.mesh.closest import _kernels
+
+    rng = np.random.default_rng(3)
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=2.0)
+    degenerate = np.array(
+        [[[0, 0, 0], [0, 0, 0], [1, 0, 0]], [[1, 1, 1]] * 3, [[0, 0, 0], [1, 0, 0], [2, 0, 0]]], dtype=float
+    )
+    for vertices, faces in (
+        (sphere.vertices, sphere.faces),
+        (degenerate.reshape(-1, 3), np.arange(9).reshape(3, 3)),
+    ):
+        queries = rng.normal(size=(300, 3)) * 2.5
+        near = rng.integers(0, len(faces), size=(300, 4))
+        points, distance = _kernels().closest_on_triangles(vertices, faces, near, queries, trimesh.tol.zero)
+        with np.errstate(all="ignore"):
+            expected = trimesh.triangles.closest_point(
+                vertices[faces][near.ravel()], np.repeat(queries, 4, axis=0)
+            ).reshape(300, 4, 3)
+        assert points.shape == (300, 4, 3) and distance.shape == (300, 4)
+        np.testing.assert_array_equal(points, expected)
+        np.testing.assert_array_equal(distance, np.linalg.norm(expected - queries[:, None], axis=2))

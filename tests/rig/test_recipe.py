@@ -307,3 +307,20 @@ def test_save_rig_load_rig_round_trip_is_equal(tmp_path):
     loaded = load_rig(path)
     assert rig_differences(rig, loaded) == []
     assert loaded == rig
+
+
+def test_build_rig_without_anatomy_is_the_same_rig_with_an_empty_anatomy():
+    """``rig_head`` builds the fitted reference's rig so (the transfer derives the user's anatomy)."""
+    import dataclasses
+
+    from mimetic.rig.anatomy import Anatomy
+    from mimetic.testing import small_head
+
+    head = small_head()
+    full, bare = build_rig(head), build_rig(head, anatomy=False)
+    empty = Anatomy.none(head.mesh.n_vertices, len(full.bones))
+    assert not bare.anatomy.creases and not bare.anatomy.lids and not bare.anatomy.actions
+    assert (
+        bare.anatomy.thickness_rel.shape == (head.mesh.n_vertices,) and not bare.anatomy.thickness_rel.any()
+    )
+    assert dataclasses.replace(full, anatomy=empty) == bare

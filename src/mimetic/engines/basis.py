@@ -394,13 +394,20 @@ def evaluate_basis(
     dtype = np.dtype(dtype)
     if dtype not in DTYPES:
         raise ValueError(f"dtype must be float64 or float32; got {dtype}")
-    a = np.atleast_2d(check_activations(basis.channels, activations))  # (f, c)
-    if len(a) == 1:  # one frame: the runs of the terms that are not 0, compiled (numba, on first use)
+    if (
+        type(activations) is np.ndarray
+        and activations.dtype == np.float64
+        and activations.shape == (len(basis.channels),)
+    ):
+        a = activations  # (c,) as given: the kernel refuses NaN and inf, and they are checked below then
+    else:
+        a = check_activations(basis.channels, activations)  # (c,) or (f, c)
+    if a.ndim == 1 or len(a) == 1:  # one frame: the runs of the terms that are not 0, compiled (numba)
         runs = basis._runs64 if dtype == np.float64 else basis._runs32
         pairs = basis.corrective_pairs
         v = _kernels().basis_frame(
             runs.neutral,
-            a[0],
+            a.reshape(-1),
             pairs,
             runs.peaks,
             runs.neutral_peak,
@@ -408,13 +415,14 @@ def evaluate_basis(
             runs.term_runs,
             runs.runs,
             runs.values,
-        )
+        )  # (n, 3)
         if len(v):
-            v = v.reshape(basis.n_vertices, 3)
-            return v if np.ndim(activations) == 1 else v[None]
-        with np.errstate(over="ignore", invalid="ignore"):  # the kernel refused the frame: say why
+            return v if a.ndim == 1 else v[None]
+        a = np.atleast_2d(check_activations(basis.channels, a))  # the kernel refused the frame: say why
+        with np.errstate(over="ignore", invalid="ignore"):
             t = np.concatenate([a, a[:, pairs[:, 0]] * a[:, pairs[:, 1]]], axis=1)
         _check_range(t, runs, dtype)
+    a = np.atleast_2d(a)  # (f, c)
     layout = basis._layout64 if dtype == np.float64 else basis._layout32
     pairs = basis.corrective_pairs  # (k, 2)
     with np.errstate(over="ignore", invalid="ignore"):  # a product that overflows is refused just below

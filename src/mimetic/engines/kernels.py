@@ -174,9 +174,9 @@ def basis_frame(
     runs: np.ndarray,
     values: np.ndarray,
 ) -> np.ndarray:
-    """One frame of a basis (``basis.evaluate_basis``, "Layout"): ``neutral + Σ_j t_j D_j`` over the
-    stored runs of the terms with t_j ≠ 0, in ``neutral``'s dtype; an empty array when the frame is
-    out of range (``basis._check_range``).
+    """One frame (n, 3) of a basis (``basis.evaluate_basis``, "Layout"): ``neutral + Σ_j t_j D_j``
+    over the stored runs of the terms with t_j ≠ 0, in ``neutral``'s dtype (``neutral`` (3n,)); an
+    empty array when the frame is out of range (``basis._check_range``; NaN and inf included).
 
     Term j < c has activation a_j; term c + k the product a_(pairs[k, 0]) a_(pairs[k, 1]). Term j's
     runs are ``runs[term_runs[j] : term_runs[j + 1]]``, each (first element of the flattened output,
@@ -191,10 +191,10 @@ def basis_frame(
     for j in range(len(t)):  # N_max + Σ |t_j| M_j, and each |t_j|, below the dtype's limit
         size = abs(t[j])
         if not size < limit:
-            return neutral[:0].copy()
+            return neutral[:0].copy().reshape((0, 3))
         magnitude += size * peaks[j]
     if not magnitude < limit:
-        return neutral[:0].copy()
+        return neutral[:0].copy().reshape((0, 3))
     out = neutral.copy()
     cast = np.empty(len(t), neutral.dtype)
     cast[:] = t  # each term's activation rounded to the output's dtype
@@ -208,7 +208,7 @@ def basis_frame(
             x = values[at : at + length]
             for e in range(length):  # views indexed from 0: LLVM vectorises the loop
                 y[e] += alpha * x[e]
-    return out
+    return out.reshape((len(out) // 3, 3))
 
 
 @numba.njit(cache=True, error_model="numpy")

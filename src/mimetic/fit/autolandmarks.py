@@ -31,8 +31,9 @@ from mimetic.fit.landmarks import MIN_LANDMARKS, Landmarks
 from mimetic.mesh.geometry import vertex_normals
 from mimetic.mesh.model import Mesh
 from mimetic.mesh.units import UNIT_SCALE, detect_units
+from mimetic.render.appearance import Surface, surface
 from mimetic.render.camera import Camera, frame_camera, project
-from mimetic.render.raster import DETECTION
+from mimetic.render.raster import ALBEDO, DETECTION
 from mimetic.render.renderer import Renderer, default_renderer
 
 log = logging.getLogger(__name__)
@@ -185,8 +186,11 @@ def _upright(landmarks: np.ndarray) -> bool:
     return abs(roll) <= MAX_ROLL_DEG and iod >= MIN_IOD_OVER_EYE_MOUTH * float(np.linalg.norm(down))
 
 
-def _find_orientation(mesh: Mesh, renderer: Renderer, depth: float) -> tuple[np.ndarray, float, int]:
-    """The candidate rotation whose front render shows the best upright frontal face.
+def _find_orientation(
+    mesh: Mesh, renderer: Renderer, depth: float, look: Surface
+) -> tuple[np.ndarray, float, int]:
+    """The candidate rotation whose front render (of what ``look`` says) shows the best upright frontal
+    face.
 
     Candidates are ranked by (upright and frontal, FaceDetection score); the search stops after
     a stage of ``_orientation_stages`` once an upright frontal face scores ``GOOD_SCORE``.
@@ -200,7 +204,7 @@ def _find_orientation(mesh: Mesh, renderer: Renderer, depth: float) -> tuple[np.
         for rotation in stage:
             camera = _camera(mesh.vertices, rotation, depth, 0.0)
             detection = detect_face(
-                renderer.render(mesh, camera, size=(SEARCH_SIZE, SEARCH_SIZE), lighting=DETECTION)
+                renderer.render(mesh, camera, size=(SEARCH_SIZE, SEARCH_SIZE), lighting=DETECTION, look=look)
             )
             key = (detection.found and _upright(detection.landmarks), detection.score)
             tried += 1
@@ -215,14 +219,15 @@ def _find_orientation(mesh: Mesh, renderer: Renderer, depth: float) -> tuple[np.
 
 
 def _views(
-    mesh: Mesh, rotation: np.ndarray, depth: float, yaws_deg, size: int, renderer, progress
+    mesh: Mesh, rotation: np.ndarray, depth: float, yaws_deg, size: int, renderer, look: Surface, progress
 ) -> list[_View]:
-    """Render at each yaw and run FaceMesh; only the renders with a face are kept."""
+    """Render (what ``look`` says) at each yaw and run FaceMesh; only the renders with a face are kept."""
     views = []
     for k, yaw in enumerate(yaws_deg):
         camera = _camera(mesh.vertices, rotation, depth, float(yaw))
         detection = detect_face(
-            renderer.render(mesh, camera, size=(size, size), lighting=DETECTION), min_score=MIN_SCORE
+            renderer.render(mesh, camera, size=(size, size), lighting=DETECTION, look=look),
+            min_score=MIN_SCORE,
         )
         log.debug("yaw %+.0f: score %.3f, found %s", yaw, detection.score, detection.found)
         if detection.found:
@@ -468,7 +473,8 @@ def _detect(
     renderer = default_renderer() if renderer is None else renderer
     start = time.perf_counter()
     depth = _crown_depth(mesh)
-    rotation, score, tried = _find_orientation(mesh, renderer, depth)
+    look = surface(mesh, ALBEDO)  # what every render draws, as ``render`` would find it each time
+    rotation, score, tried = _find_orientation(mesh, renderer, depth, look)
     log.debug(
         "orientation search: %d renders, best score %.3f, %.2f s", tried, score, time.perf_counter() - start
     )
@@ -480,7 +486,7 @@ def _detect(
             f"{score:.2f} < {MIN_SCORE}). Check that the mesh is a head with a face (eyes, nose, mouth), "
             "or give the landmarks in a file (CLI: --landmarks lm.csv; API: read_landmarks)."
         )
-    views = _views(mesh, rotation, depth, yaws_deg, size, renderer, progress)
+    views = _views(mesh, rotation, depth, yaws_deg, size, renderer, look, progress)
     if not views:
         raise LandmarkError(
             f"FaceMesh found no face in the {len(yaws)} full-size renders (yaws {yaws.tolist()}) "

@@ -217,7 +217,7 @@ def _rig(
         )
     if progress is not None:
         progress("rig", 0, 1)
-    reference_rig = build_rig(fit.head)
+    reference_rig = build_rig(fit.head, anatomy=False)  # the transfer derives the user's own
     welded_rig = transfer_rig(
         reference_rig,
         weld.mesh,

@@ -25,10 +25,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import cache
+from types import ModuleType
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import cg, splu
+from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from mimetic.errors import MeshError
@@ -219,25 +221,80 @@ def umbrella_laplacian(faces: np.ndarray, n: int) -> sp.csr_matrix:
     return (sp.identity(n, format="csr") - sp.diags(inv) @ adjacency).tocsr()
 
 
+def _with_diagonal(matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``matrix`` (n, n) in canonical CSR (sorted, no stored zeros: as ``sp.diags(d) + matrix`` is
+    summed) and where its diagonal entries are in its ``data`` (n,), so the registration's system
+    ``diags(d) + α matrix`` is a scaled copy with ``d`` added there rather than a sparse sum per solve.
+    Every diagonal entry must be stored (LᵀL's are: sums of squares)."""
+    out = matrix.tocsr()
+    out.sum_duplicates()
+    out.eliminate_zeros()
+    rows = np.repeat(np.arange(out.shape[0]), np.diff(out.indptr))
+    diagonal_at = np.flatnonzero(rows == out.indices)
+    assert len(diagonal_at) == out.shape[0], "a diagonal entry of LᵀL is not stored"
+    return out, diagonal_at
+
+
 def _solve_spd(system: sp.csr_matrix, rhs: np.ndarray, guess: np.ndarray) -> np.ndarray:
-    """Solve the SPD ``system`` (n, n) for each column of ``rhs`` (n, 3).
+    """Solve the SPD ``system`` (n, n) for the three columns of ``rhs`` (n, 3).
 
     Jacobi-preconditioned conjugate gradients warm-started at ``guess`` first: between schedule
     steps the solution moves little, so on a head the target covers this takes tens of
     iterations. Where much of the reference has no data (a face-only mask), the bi-Laplacian
     leaves it badly conditioned and CG stalls; then a sparse LU factorisation (symmetric mode)
     solves it directly, in about 0.2 s for 10k vertices.
+
+    Each column takes the steps of ``scipy.sparse.linalg.cg(system, b, x0=x0, rtol=CG_RTOL,
+    maxiter=CG_MAXITER, M=diags(1 / diagonal))`` with the same arithmetic, so the same bits; the three
+    run side by side, sharing one pass over the matrix per step (``fit.kernels``), and a column
+    stops where scipy's would.
     """
-    precondition = sp.diags(1.0 / system.diagonal())
-    out = np.empty_like(rhs)
-    for d in range(rhs.shape[1]):
-        out[:, d], info = cg(
-            system, rhs[:, d], x0=guess[:, d], rtol=CG_RTOL, maxiter=CG_MAXITER, M=precondition
-        )
-        if info != 0:
-            lu = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
-            return lu.solve(rhs)
-    return out
+    assert rhs.shape[1] == 3, "the registration solves for three coordinates"
+    kernels = _kernels()
+    indptr, indices = system.indptr.astype(np.uint64), system.indices.astype(np.uint64)
+    inverse_diagonal = 1.0 / system.diagonal()
+    b = np.ascontiguousarray(rhs.T)  # (3, n): each coordinate contiguous, as scipy's vectors are
+    x = np.array(guess.T, order="C")
+    atol = [CG_RTOL * np.linalg.norm(b[d]) for d in range(3)]
+    ax = kernels.csr_matvec3(indptr, indices, system.data, x)
+    r = np.zeros_like(b)  # the residuals (0 in a column that is done from the start)
+    live = []
+    for d in range(3):
+        if atol[d] == 0:  # b = 0: scipy returns b
+            x[d] = b[d]
+        else:
+            r[d] = b[d] - ax[d] if x[d].any() else b[d]
+            live.append(d)
+    p = np.zeros_like(b)
+    rho_prev = np.ones(3)
+    for iteration in range(CG_MAXITER):
+        live = [d for d in live if not np.linalg.norm(r[d]) < atol[d]]
+        if not live:
+            return np.ascontiguousarray(x.T)
+        z = inverse_diagonal * r
+        for d in live:
+            rho = np.dot(r[d], z[d])
+            if iteration > 0:
+                p[d] *= rho / rho_prev[d]
+                p[d] += z[d]
+            else:
+                p[d] = z[d]
+            rho_prev[d] = rho
+        q = kernels.csr_matvec3(indptr, indices, system.data, p)
+        for d in live:
+            alpha = rho_prev[d] / np.dot(p[d], q[d])
+            x[d] += alpha * p[d]
+            r[d] -= alpha * q[d]
+    lu = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+    return lu.solve(rhs)
+
+
+@cache
+def _kernels() -> ModuleType:
+    """``mimetic.fit.kernels``, imported on the first solve (numba loads in ~0.3 s)."""
+    from mimetic.fit import kernels
+
+    return kernels
 
 
 def register(
@@ -279,6 +336,7 @@ def register(
     lap = umbrella_laplacian(faces, n)
     ltl = (lap.T @ lap).tocsc()
     ltl_x0 = ltl @ x0
+    smooth, diagonal_at = _with_diagonal(ltl)  # the systems' pattern: LᵀL's, the diagonal among it
     tree = cKDTree(target.points)
     lm = np.zeros(0, np.int64) if landmarks is None else np.asarray(landmarks, dtype=np.int64)
     lm_w = np.ones(len(lm)) if landmark_weights is None else np.asarray(landmark_weights, dtype=np.float64)
@@ -314,7 +372,9 @@ def register(
                 on = curve.polyline[seg] + t[:, None] * (curve.polyline[seg + 1] - curve.polyline[seg])
                 np.add.at(diag, curve.vertices, pull)
                 np.add.at(rhs, curve.vertices, pull * on)
-            system = (sp.diags(diag) + stage.stiffness * ltl).tocsr()
+            system = smooth.copy()  # diag(W + β S) + α LᵀL, entry for entry as scipy adds them
+            system.data *= stage.stiffness
+            system.data[diagonal_at] += diag
             x = _solve_spd(system, rhs + stage.stiffness * ltl_x0, x)
             done += 1
             if progress is not None:

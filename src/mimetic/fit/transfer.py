@@ -368,6 +368,7 @@ def transfer_rig(
     rig_vertices = user.vertices @ turn.T
     mesh_ref = reference.mesh
     in_model = to_model.apply(user.vertices)
+    in_model.setflags(write=False)  # so the user's edges, pieces and skin are found once (``mesh.memo``)
     normals = vertex_normals(in_model, user.faces)
     hit = _correspond(mesh_ref, np.arange(mesh_ref.n_faces), in_model, normals)
     rigid, soft_mouth = _separate_parts(reference, user, in_model, hit)

@@ -9,11 +9,15 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.sparse.linalg import spsolve
 
+from mimetic.mesh.memo import per_arrays
 
+
+@per_arrays(2, copies=True)
 def face_normals(vertices: np.ndarray, faces: np.ndarray, *, unit: bool = True) -> np.ndarray:
     """Normals (m, 3) float64 of triangles ``faces`` (m, 3) over ``vertices`` (n, 3).
 
-    With ``unit=False`` each normal's length is twice the triangle's area.
+    With ``unit=False`` each normal's length is twice the triangle's area. Computed once per
+    (``vertices``, ``faces``) of a ``Mesh`` (``mesh.memo``), a new array each call.
     """
     tri = vertices[faces]  # (m, 3, 3)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # (m, 3)
@@ -23,8 +27,10 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray, *, unit: bool = True) 
     return n
 
 
+@per_arrays(2, copies=True)
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (n, 3) float64; unused vertices get (0, 0, 0)."""
+    """Area-weighted unit vertex normals (n, 3) float64; unused vertices get (0, 0, 0). Computed once
+    per (``vertices``, ``faces``) of a ``Mesh`` (``mesh.memo``), a new array each call."""
     fn = face_normals(vertices, faces, unit=False)  # (m, 3), |fn| = 2 area
     corner = faces.ravel()  # (3m,)
     out = np.stack([np.bincount(corner, np.repeat(fn[:, d], 3), len(vertices)) for d in range(3)], axis=1)
@@ -36,7 +42,9 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 # These take ``faces`` (m, 3) int64 only, so they serve the loader, the validator, the head
 # generator and the fitting code alike. Edges are undirected and stored as sorted pairs (i < j).
 # An "edge" whose two ends are the same vertex (from a degenerate face such as (4, 4, 7)) is
-# not an edge: every function here leaves it out.
+# not an edge: every function here leaves it out. The edges, the boundary and the pieces of a
+# ``Mesh``'s faces (read-only arrays) are computed once per faces array (``mesh.memo``) and handed
+# out read-only.
 
 
 class BoundaryPaths(NamedTuple):
@@ -91,6 +99,7 @@ def _half_edges(faces: np.ndarray) -> np.ndarray:
     return faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
 
 
+@per_arrays(1)
 def edges_with_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unique undirected edges of ``faces`` and how many faces use each.
 
@@ -196,6 +205,7 @@ def smooth_field(
     return out
 
 
+@per_arrays(1)
 def connected_components(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     """Connected components of ``n`` vertices joined by the edges of ``faces`` (m, 3).
 
@@ -244,6 +254,7 @@ def boundary_paths(faces: np.ndarray) -> BoundaryPaths:
     )
 
 
+@per_arrays(1)
 def boundary_edges(faces: np.ndarray) -> np.ndarray:
     """Edges (b, 2) int64 used by exactly one face of ``faces`` (m, 3), as that face walks them.
 

@@ -51,6 +51,7 @@ from mimetic.mesh.geometry import (
     face_normals,
     vertex_normals,
 )
+from mimetic.mesh.memo import per_arrays
 
 __all__ = [
     "DepthMap",
@@ -154,9 +155,11 @@ class Opening:
         return (along > inset) & (along < 1 - inset)
 
 
+@per_arrays(2)
 def skin_faces(vertices: np.ndarray, faces: np.ndarray, *, labels: np.ndarray | None = None) -> np.ndarray:
     """The faces (f, 3) of the largest connected piece of the mesh by area: the skin. ``labels`` (n,):
-    the pieces (``connected_components(faces, n)[1]``), when the caller has them."""
+    the pieces (``connected_components(faces, n)[1]``), when the caller has them. Read-only, and
+    computed once per (``vertices``, ``faces``) of a ``Mesh`` (``mesh.memo``)."""
     if labels is None:
         _, labels = connected_components(faces, len(vertices))
     face_label = labels[faces[:, 0]]
@@ -167,10 +170,16 @@ def skin_faces(vertices: np.ndarray, faces: np.ndarray, *, labels: np.ndarray | 
 def gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.ndarray:
     """Vertices (n,) bool where the surface, seen along ``gaze`` (3,), ends or turns away: on a boundary
     edge, or shared by a face facing the viewer (n · gaze > 0) and one facing away. A lid margin is
-    such a rim: the skin ends at an eye hole or folds back into the eye socket there."""
+    such a rim: the skin ends at an eye hole or folds back into the eye socket there. (Found once per
+    mesh and gaze, ``mesh.memo``; a new array each call.)"""
+    return _gaze_rim(vertices, faces, *(float(g) for g in np.asarray(gaze, dtype=np.float64).reshape(3)))
+
+
+@per_arrays(2, copies=True)
+def _gaze_rim(vertices: np.ndarray, faces: np.ndarray, *gaze: float) -> np.ndarray:
     n = len(vertices)
     normals = face_normals(vertices, faces, unit=False)
-    facing = normals @ gaze
+    facing = normals @ np.array(gaze)
     has_area = np.linalg.norm(normals, axis=1) > 0
     front = np.zeros(n, dtype=bool)
     back = np.zeros(n, dtype=bool)
@@ -181,20 +190,37 @@ def gaze_rim(vertices: np.ndarray, faces: np.ndarray, gaze: np.ndarray) -> np.nd
     return rim
 
 
+@per_arrays(2)
+def _face_boxes(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each face's bounds in x and y, (f, 4): x min, x max, y min, y max (remembered per mesh)."""
+    corners = vertices[faces]  # (f, 3, 3)
+    x, y = corners[:, :, 0], corners[:, :, 1]
+    return np.column_stack([x.min(axis=1), x.max(axis=1), y.min(axis=1), y.max(axis=1)])
+
+
+@per_arrays(2)
+def _face_centres(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each face's centroid (f, 3) (remembered per mesh)."""
+    return vertices[faces].mean(axis=1)
+
+
 def front_depth(
-    vertices: np.ndarray, faces: np.ndarray, low: np.ndarray, high: np.ndarray, step: float
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    step: float,
+    *,
+    keep: np.ndarray | None = None,
 ) -> DepthMap:
-    """The depth of ``faces`` seen along −Z over the grid from ``low`` to ``high`` ((2,) x and y) with
-    spacing ``step``, mesh units."""
+    """The depth of ``faces`` (only those of ``keep`` (f,) bool, when given) seen along −Z over the grid
+    from ``low`` to ``high`` ((2,) x and y) with spacing ``step``, mesh units."""
     x = np.arange(low[0], high[0] + step / 2, step)
     y = np.arange(low[1], high[1] + step / 2, step)
-    corners = vertices[faces]  # (f, 3, 3)
-    inside = (
-        (corners[:, :, 0].max(axis=1) >= low[0])
-        & (corners[:, :, 0].min(axis=1) <= high[0])
-        & (corners[:, :, 1].max(axis=1) >= low[1])
-        & (corners[:, :, 1].min(axis=1) <= high[1])
-    )
+    box = _face_boxes(vertices, faces)  # (f, 4)
+    inside = (box[:, 1] >= low[0]) & (box[:, 0] <= high[0]) & (box[:, 3] >= low[1]) & (box[:, 2] <= high[1])
+    if keep is not None:
+        inside &= keep
     z = np.full((len(y), len(x)), np.nan)
     if not inside.any():
         return DepthMap(x, y, z)
@@ -336,12 +362,15 @@ def eye_opening(
     Opening, or None when there is no opening near the corners.
     """
     corners = np.asarray(corners, dtype=np.float64)
+    seen = None
     if ball is not None:
-        faces = faces[np.linalg.norm(vertices[faces].mean(axis=1) - ball[0], axis=1) >= HIDDEN_REL * ball[1]]
+        seen = np.linalg.norm(_face_centres(vertices, faces) - ball[0], axis=1) >= HIDDEN_REL * ball[1]
     width = float(np.linalg.norm(corners[1] - corners[0]))
     middle = corners.mean(axis=0)
     half = np.array(EYE_WINDOW_REL) * width
-    depth = front_depth(vertices, faces, middle[:2] - half, middle[:2] + half, EYE_STEP_REL * width)
+    depth = front_depth(
+        vertices, faces, middle[:2] - half, middle[:2] + half, EYE_STEP_REL * width, keep=seen
+    )
     labels = _pieces(depth.z, JUMP_REL * width)
     border = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])
     hole = labels != np.bincount(border).argmax()

@@ -26,6 +26,7 @@ from scipy.spatial import cKDTree
 
 from mimetic.mesh.closest import closest_points
 from mimetic.mesh.geometry import connected_components
+from mimetic.mesh.memo import per_arrays
 from mimetic.mesh.model import Mesh
 
 ACCESSORY_MAX_FRACTION = 0.02
@@ -100,11 +101,30 @@ def find_accessories(mesh: Mesh, scale: float, weights: sp.spmatrix) -> Accessor
     skin = mesh.parts.get("skin")
     if skin is None or mesh.n_faces == 0:
         return none
-    n, faces = mesh.n_vertices, mesh.faces
+    riding = _rivets(mesh.vertices, mesh.faces, skin, scale)
+    if riding is None:
+        return none
+    ids, triangles, bary = riding
+    v = mesh.vertices
+    rivets = np.einsum("ak,akd->ad", bary, v[triangles])
+    dense = weights.tocsr()
+    at_rivets = sum(bary[:, [k]] * dense[triangles[:, k]].toarray() for k in range(3))  # (a, bones)
+    at_rivets /= at_rivets.sum(axis=1, keepdims=True)
+    return Accessories(ids, triangles, bary, v[ids] - rivets, at_rivets)
+
+
+@per_arrays(3)
+def _rivets(
+    v: np.ndarray, faces: np.ndarray, skin: np.ndarray, scale: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The accessory vertices (a,), the skin triangles (a, 3) and barycentric rivets (a, 3) they ride
+    (``find_accessories``; None without accessories), found once per mesh (``mesh.memo``: the
+    transfer and the anatomy both ask)."""
+    n = len(v)
     _, label = connected_components(faces, n)
     sizes = np.bincount(label)
     main = int(np.argmax(sizes))
-    in_skin = np.zeros(mesh.n_faces, dtype=bool)
+    in_skin = np.zeros(len(faces), dtype=bool)
     in_skin[skin] = True
     face_label = label[faces[:, 0]]
     outside_skin = np.unique(face_label[~in_skin])  # components with a face of another part
@@ -115,8 +135,7 @@ def find_accessories(mesh: Mesh, scale: float, weights: sp.spmatrix) -> Accessor
     ]
     main_faces = faces[(face_label == main) & in_skin]
     if not candidates or len(main_faces) == 0:
-        return none
-    v = mesh.vertices
+        return None
     members = [np.flatnonzero(label == c) for c in candidates]
     # one query for every candidate's vertices (each query's answer is its own: one search tree over
     # the skin instead of one per candidate, 36 trees of 50k triangles per ICT rig before)
@@ -134,11 +153,6 @@ def find_accessories(mesh: Mesh, scale: float, weights: sp.spmatrix) -> Accessor
         root = roots[nearest]  # (k,) the root each vertex follows
         pieces.append((ids, hit_faces[root], hit_bary[root]))
     if not pieces:
-        return none
+        return None
     ids, hit_faces, bary = (np.concatenate(x) for x in zip(*pieces, strict=True))
-    triangles = main_faces[hit_faces]  # (a, 3)
-    rivets = np.einsum("ak,akd->ad", bary, v[triangles])
-    dense = weights.tocsr()
-    at_rivets = sum(bary[:, [k]] * dense[triangles[:, k]].toarray() for k in range(3))  # (a, bones)
-    at_rivets /= at_rivets.sum(axis=1, keepdims=True)
-    return Accessories(ids, triangles, bary, v[ids] - rivets, at_rivets)
+    return ids, main_faces[hit_faces], bary

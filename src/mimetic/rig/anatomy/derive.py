@@ -73,6 +73,20 @@ class Anatomy:
         if self.lip_contact.size == 0:
             object.__setattr__(self, "lip_contact", self.lip_contact.reshape(0, 2))
 
+    @staticmethod
+    def none(n_vertices: int, bones: int) -> Anatomy:
+        """No anatomy for a rig of ``n_vertices`` vertices and ``bones`` bones: no creases, skull, lip
+        contact, accessories, lids or actions, and no tissue. For a rig that is only a step on the way
+        to another (``rig_head`` transfers the fitted reference's rig, and the transferred rig derives
+        its own anatomy on the user's mesh), where deriving it would be wasted."""
+        return Anatomy(
+            (),
+            Skull(np.zeros(0, np.int64), np.zeros((0, 3))),
+            np.zeros((0, 2), np.int64),
+            Accessories.none(bones),
+            np.zeros(n_vertices),
+        )
+
 
 def skin_vertices(mesh: Mesh) -> np.ndarray:
     """Sorted indices of the deformable vertices (``SKIN_PARTS``), or all of them without parts."""

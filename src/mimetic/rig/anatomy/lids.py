@@ -280,12 +280,11 @@ def _seen_margins(
     corners: np.ndarray,
     centre: np.ndarray,
     radius: float,
-    labels: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The rim vertices along the upper and lower edges of the eye's opening seen from the front
     (``mimetic.mesh.openings``: the lids' silhouettes, whatever the regions say), or None when no
-    opening is found (eyes closed by faces). ``labels`` (n,): the mesh's connected pieces."""
-    skin = skin_faces(vertices, faces, labels=labels)
+    opening is found (eyes closed by faces)."""
+    skin = skin_faces(vertices, faces)
     opening = eye_opening(vertices, skin, corners, (centre, radius))
     if opening is None:
         return None
@@ -345,7 +344,7 @@ def lid_rims(
     mixed = is_tucked[edges[:, 0]] != is_tucked[edges[:, 1]]
     next_to_tucked[edges[mixed].ravel()] = True
     rim = gaze_rim(vertices, faces, axes[2])
-    seen = _seen_margins(vertices, faces, corners, centre, radius, labels)
+    seen = _seen_margins(vertices, faces, corners, centre, radius)
     upper, lower, margin = [], [], []
     for tucked in (False, True):
         layer = lids[is_tucked[lids] == tucked]
