@@ -117,12 +117,12 @@ class ExpressionLibrary:
 def reference_channels() -> tuple[Channel, ...]:
     """The channels (names and ranges) of the recipe's rig, from a 1,500-vertex reference head.
 
-    Built once per process (about 0.3 s).
+    Built once per process (about 0.2 s; without the anatomy, which the channels do not need).
     """
     from mimetic.head.model import make_head
     from mimetic.rig.recipe import build_rig
 
-    return build_rig(make_head(resolution=1_500)).channels
+    return build_rig(make_head(resolution=1_500), anatomy=False).channels
 
 
 def _channels(source: Rig | Sequence[Channel] | None) -> tuple[Channel, ...]:

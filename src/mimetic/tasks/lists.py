@@ -74,7 +74,7 @@ def _rig_or_default(rig_file: Path | None):
     from mimetic.head.model import make_head
     from mimetic.rig.recipe import build_rig
 
-    return build_rig(make_head(resolution=1_500))
+    return build_rig(make_head(resolution=1_500), anatomy=False)  # its channels and muscles only
 
 
 TASK = Task("list", ListOptions, run, (), source="rig")
