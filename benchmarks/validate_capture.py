@@ -207,9 +207,9 @@ BOUND_PRIORS = tuple((nu, mu) for nu in (0.003, 0.01, 0.03, 0.1) for mu in (0.0,
 def depth_bound(case: Case) -> dict:
     """What one view can tell with this rig: every face vertex seen from the front in 2D, exactly (no
     tracker, no head motion, no noise, orthographic), the rig fitted with the shape prior and the
-    library prior (``capture.reprojection``) at each of ``BOUND_PRIORS``; the best score against the
-    truth (so an optimistic bound: the weights are chosen knowing the answer)."""
-    from mimetic.capture.expression import library_directions, visible_channels
+    library prior (``capture.expression.with_library``) at each of ``BOUND_PRIORS``; the best score
+    against the truth (so an optimistic bound: the weights are chosen knowing the answer)."""
+    from mimetic.capture.expression import library_directions, visible_channels, with_library
     from mimetic.capture.qp import box_qp_frames
     from mimetic.capture.solve import channel_bounds
 
@@ -222,20 +222,13 @@ def depth_bound(case: Case) -> dict:
     k = len(free)
     A3, A2 = D.reshape(k, -1).T, D[..., :2].reshape(k, -1).T
     S, seen, M = A3.T @ A3, A2.T @ A2, library_directions(basis, free)
-    r = len(M)
     g2 = (truth[:, face, :2] - basis.neutral[face, :2]).reshape(len(truth), -1) @ A2
     best = None
     for nu, mu in BOUND_PRIORS:
-        H = np.zeros((k + r, k + r))
-        H[:k, :k] = seen + (nu + mu) * S
-        H[:k, k:] = -mu * S @ M.T
-        H[k:, :k] = H[:k, k:].T
-        H[k:, k:] = mu * M @ S @ M.T
-        H[np.diag_indices(k + r)] += 1e-4 * np.maximum(np.diag(H), 1e-9)
-        g = np.concatenate([g2, np.zeros((len(g2), r))], axis=1)
-        x, _ = box_qp_frames(
-            H, g, np.concatenate([lower, np.zeros(r)]), np.concatenate([upper, np.full(r, 9.0)])
-        )
+        H, g, low, high = with_library((seen + nu * S)[None], g2, lower, upper, S, M, np.array([mu]))
+        H = H[0]
+        H[np.diag_indices(len(H))] += 1e-4 * np.maximum(np.diag(H), 1e-9)
+        x, _ = box_qp_frames(H, g, low, high)
         values = np.zeros((len(x), basis.n_channels))
         values[:, free] = x[:, :k]
         s = score(case.performer, case.take30, evaluate_basis(basis, values))

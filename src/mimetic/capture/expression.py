@@ -273,3 +273,37 @@ def library_directions(basis: Basis, free: np.ndarray) -> np.ndarray:
             rows.append([values.get(basis.channels[j], 0.0) for j in free])
     directions = np.array(rows, dtype=np.float64).reshape(-1, len(free))
     return np.unique(directions[np.abs(directions).sum(axis=1) > 0], axis=0)
+
+
+LIBRARY_RIDGE = 1e-6
+"""Ridge on the library weights' block, relative to its diagonal (shapes alike on the skin)."""
+
+
+def with_library(
+    H: np.ndarray,
+    g: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    shape: np.ndarray,
+    library: np.ndarray,
+    mu: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A box QP (``capture.qp``: H (b, k, k), g (f, k), bounds (k,)) with the library prior added at
+    weights μ (b,): the face's motion off the cone of the ``library``'s directions (r, k), min over
+    w ≥ 0 of μ ‖S^½ (a − Mᵀ w)‖² (S = ``shape`` (k, k), the skin's motion gram), solved with the shape
+    weights w as r more variables. Returns H (b, k + r, k + r), g (f, k + r) and the bounds (k + r,);
+    the QP unchanged without directions or weight."""
+    r, k = library.shape
+    if r == 0 or not np.any(mu > 0):
+        return H, g, lower, upper
+    SM = shape @ library.T
+    MSM = library @ SM
+    MSM[np.diag_indices(r)] += LIBRARY_RIDGE * np.maximum(np.diag(MSM), 1e-12 * np.diag(MSM).max())
+    mu = np.asarray(mu, dtype=np.float64)[:, None, None]
+    full = np.empty((len(H), k + r, k + r))
+    full[:, :k, :k] = H + mu * shape
+    full[:, :k, k:] = -mu * SM
+    full[:, k:, :k] = -mu * SM.T
+    full[:, k:, k:] = mu * MSM
+    padded = np.concatenate([g, np.zeros((len(g), r))], axis=1)
+    return full, padded, np.concatenate([lower, np.zeros(r)]), np.concatenate([upper, np.full(r, np.inf)])

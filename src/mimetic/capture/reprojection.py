@@ -60,7 +60,13 @@ from mimetic.capture.camera import (
     initial_pose,
     refine_pose,
 )
-from mimetic.capture.expression import library_directions, marker_deltas, skin_gram, visible_channels
+from mimetic.capture.expression import (
+    library_directions,
+    marker_deltas,
+    skin_gram,
+    visible_channels,
+    with_library,
+)
 from mimetic.capture.head import MODEL_ERROR, HeadMotion, nearest_true
 from mimetic.capture.markers import MarkerSet, marker_normals, snap_to_skin, with_tangents
 from mimetic.capture.qp import box_qp_frames
@@ -104,8 +110,6 @@ LIBRARY_GAIN = 30.0
 and μ = (σ_e / τ_E)², so a skin coordinate is taken to stray from the library's combinations by
 τ_E = τ / √30, about a fifth of how far it moves. Chosen on the calibration heads' video (face
 residual −3.1 points against no library prior at 30, −2.1 at 10, −3.0 at 100; docs/capture.md)."""
-LIBRARY_RIDGE = 1e-6
-"""Ridge on the library weights' block, relative to its diagonal (shapes alike on the skin)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,7 +192,8 @@ class ImageModel:
             H[:, np.arange(k), np.arange(k)] += max(self.regularization, 1e-12) * ridge
             H += nu * (scale[c] ** 2)[:, None, None] * self.shape
             g = (rows.transpose(0, 2, 1) @ (root[..., 0] * target).reshape(len(A), -1, 1))[..., 0]
-            H, g, lower, upper = self._with_library(H, g, LIBRARY_GAIN * nu * scale[c] ** 2)
+            mu = LIBRARY_GAIN * nu * scale[c] ** 2
+            H, g, lower, upper = with_library(H, g, self.lower, self.upper, self.shape, self.library, mu)
             start = np.zeros_like(g)
             start[:, :k] = np.clip(x[c], self.lower, self.upper)
             solved, ok = box_qp_frames(H, g, lower, upper, start)
@@ -202,32 +207,6 @@ class ImageModel:
                 solved[~ok] = x[c][~ok]
             out[c] = solved
         return out
-
-    def _with_library(
-        self, H: np.ndarray, g: np.ndarray, mu: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The frames' QP (H (b, k, k), g (b, k)) with the library prior at weights μ (b,) (pixels²
-        per rig unit²) added: the face's motion off the library's cone, min over w ≥ 0 of
-        μ ‖S^½ (a − Mᵀ w)‖² (S the shape prior's gram, M the library), solved with the shape weights
-        w as r more variables. Returns H (b, k + r, k + r), g (b, k + r) and the bounds (k + r,)."""
-        M = self.library
-        r, k = M.shape
-        if r == 0 or not np.any(mu > 0):
-            return H, g, self.lower, self.upper
-        S = self.shape
-        SM = S @ M.T
-        MSM = M @ SM
-        MSM[np.diag_indices(r)] += LIBRARY_RIDGE * np.maximum(np.diag(MSM), 1e-12 * np.diag(MSM).max())
-        mu = mu[:, None, None]
-        full = np.empty((len(H), k + r, k + r))
-        full[:, :k, :k] = H + mu * S
-        full[:, :k, k:] = -mu * SM
-        full[:, k:, :k] = -mu * SM.T
-        full[:, k:, k:] = mu * MSM
-        padded = np.concatenate([g, np.zeros((len(g), r))], axis=1)
-        lower = np.concatenate([self.lower, np.zeros(r)])
-        upper = np.concatenate([self.upper, np.full(r, np.inf)])
-        return full, padded, lower, upper
 
     def scale(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
         """(f,) pixels per rig unit at the face's depth."""
