@@ -97,8 +97,8 @@ def test_synthetic_capture_recovers_the_determined_channels(rig, baked, ibug):
 
 
 def test_clean_capture_is_recovered(rig, baked, ibug):
-    """No noise, no smoothing, no regularisation: the expression and the head motion come back (the
-    head from markers the expression barely moves, refined by alternating with the solve)."""
+    """No noise, no smoothing, no regularisation, no L1 term: the expression and the head motion come
+    back (the head from markers the expression barely moves, refined by alternating with the solve)."""
     rng = np.random.default_rng(1)
     names = ("jaw_open", "cheek_puff_L", "mouth_slide_R")
     values = smooth_clip(rig, names, 90, rng)
@@ -113,6 +113,7 @@ def test_clean_capture_is_recovered(rig, baked, ibug):
         robust=False,
         regularization=0.0,
         shape_prior=0.0,
+        sparsity=0.0,
     )
     columns = [rig.channel_index(n) for n in names]
     np.testing.assert_allclose(performance.clip.values[:, columns], values[:, columns], atol=2e-3)
@@ -150,10 +151,12 @@ def test_sparsity_zeroes_small_activations(rig, baked, ibug):
     names = ("jaw_open", "mouth_slide_L", "mouth_slide_R")
     values = smooth_clip(rig, names[:1], 120, rng)
     traj, _ = capture(rig, baked, ibug, values, angles=head_angles(120, 0.0), rng=rng, drop=0.0, spikes=0.0)
-    dense = solve_performance(rig, traj, basis=baked, active=names)
+    dense = solve_performance(rig, traj, basis=baked, active=names, sparsity=0.0)
+    default = solve_performance(rig, traj, basis=baked, active=names)  # SPARSITY
     sparse = solve_performance(rig, traj, basis=baked, active=names, sparsity=0.05)
     idle = [rig.channel_index(n) for n in names[1:]]
     assert np.mean(dense.clip.values[:, idle] == 0) < 0.9  # noise shows up as small activations
+    assert np.abs(default.clip.values[:, idle]).mean() < 0.5 * np.abs(dense.clip.values[:, idle]).mean()
     assert np.mean(sparse.clip.values[:, idle] == 0) > 0.95
     j = rig.channel_index("jaw_open")  # a signed channel: no L1 term
     assert np.abs(sparse.clip.values[:, j] - values[:, j]).max() < 0.05

@@ -72,6 +72,15 @@ solve cannot fit per marker coordinate: the capture's noise, and how far the rig
 performer's face. Chosen on the calibration heads of ``benchmarks/validate_capture.py`` (markers
 route, κ 0.5): gap to the ceiling 11.1 points at τ 0.004, 6.1 at 0.006, 4.5 at 0.008, 4.4 at
 0.013, 5.1 without the prior; moving frames worse than rest 0.1 %, 0.2 %, 0.5 %, 1.0 %, 1.2 %."""
+SPARSITY = 0.005
+"""Weight of the markers' L1 term (``capture.expression``: σ_i = ``SPARSITY`` · ‖D_i‖² on each
+one-sided channel, so a channel that moves the markers little is not kept on for a few tenths of a
+millimetre it explains): with the shape prior alone, 49 channels from 68 markers keep lip
+depressors and a lid raiser on in acts that do not use them. Chosen on the calibration heads of
+``benchmarks/validate_capture.py`` (markers route; gap to the ceiling, mean of the three): 5.0
+points without it, 4.6 at 0.005, 4.7 at 0.01, 5.4 at 0.03 (ICT's neutral alone: 8.2 at 0.1, 19.5
+at 0.3). Checked on the check heads: 5.6 → 5.1 (3.6 → 3.2, 6.4 → 6.1, 6.9 → 6.0). Image landmarks
+do without it (their solve has the library prior)."""
 HEAD_ROUNDS = 8
 ROUNDS_TOLERANCE = 1e-3
 """The alternation stops once no activation moves by more than this between rounds (activation units
@@ -296,7 +305,7 @@ def solve_performance(
     cutoff_hz: float | None = CUTOFF_HZ,
     regularization: float = 1e-3,
     shape_prior: float | None = None,
-    sparsity: float = 0.0,
+    sparsity: float = SPARSITY,
     robust: bool = True,
     place: bool | None = None,
     focal: float | None = None,
@@ -325,7 +334,8 @@ def solve_performance(
     cutoff_hz : float or None
         Temporal smoothing cutoff (``capture.smooth``); None solves each frame on its own.
     regularization, sparsity : float
-        The ridge λ and the L1 weight of the expression solve (``capture.expression``).
+        The ridge λ and the L1 weight of the markers' expression solve (``capture.expression``;
+        ``SPARSITY`` by default; image landmarks do without it).
     shape_prior : float or None
         The shape prior's weight ν; None ties it to the misfit, ν = (σ_e / τ)² (``SHAPE_MOTION_REL``),
         remeasured after every solve; 0 solves without it. Image landmarks add the library prior at

@@ -77,7 +77,11 @@ class CaptureSolveOptions(SolveOptions):
     fps: float | None = option(None, "Frame rate, when the file has none.", minimum=1e-3)
     units: str | None = option(None, "Units, when the file has none.", choices=LENGTH_UNITS)
     robust: bool = option(True, "Reject spikes and unexplained markers.")
-    sparsity: float = option(0.0, "L1 weight (activation units).", minimum=0.0)
+    sparsity: float | None = option(
+        None,
+        "L1 weight of the markers' solve, per unit of each channel's effect (default: the library's, 0.005).",
+        minimum=0.0,
+    )
     refine: int = option(0, "Gauss-Newton steps against the engine.", minimum=0, maximum=5)
     edits: Path | None = option(
         None, "An edited clip JSON of an earlier solve: its edit layers go over this solve.", batch=False
@@ -194,8 +198,8 @@ def solve(
         options,
         progress,
         robust=options.robust,
-        sparsity=options.sparsity,
         refine=options.refine,
+        **({} if options.sparsity is None else {"sparsity": options.sparsity}),
     )
 
 
