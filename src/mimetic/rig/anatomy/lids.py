@@ -53,8 +53,9 @@ from mimetic.head.parts import eyeball_profile
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.geometry import connected_components, edges_unique
 from mimetic.mesh.openings import (
-    SEED_TOLERANCE_REL,
+    EYE_STEP_REL,
     eye_opening,
+    eyeball,
     gaze_rim,
     margin_distance,
     margin_seeds,
@@ -91,6 +92,9 @@ TUCKED_REL = 0.9
 """Rim vertices nearer the eye's centre than this × its radius are a skirt tucked inside the eyeball."""
 SPAN = (0.05, 0.95)
 """The part of the corner chord (fractions from the inner corner) whose rims are contacts."""
+SEED_STEPS = 2.0
+"""A rim vertex within this many steps of the eye's grid (``mimetic.mesh.openings.EYE_STEP_REL``) of
+the opening's edge, seen from the front, is on the margin (``_seen_margins``)."""
 MIN_CHAIN = 0.25
 """A piece of rim is a margin when its envelope spans this much of the corner chord."""
 OUTLIER_REL = 0.1
@@ -283,12 +287,18 @@ def _seen_margins(
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The rim vertices along the upper and lower edges of the eye's opening seen from the front
     (``mimetic.mesh.openings``: the lids' silhouettes, whatever the regions say), or None when no
-    opening is found (eyes closed by faces)."""
+    opening is found (eyes closed by faces).
+
+    A rim vertex is on the opening's edge within ``SEED_STEPS`` steps of the grid the opening was
+    seen on (``EYE_STEP_REL`` × the corners' distance), as ``mimetic.quality`` reads the margins:
+    the opening's own width is narrower (it stops short of the canthus), and a tolerance taken from
+    it left the innermost margin vertices out of the contact, free to pass the lower lid."""
     skin = skin_faces(vertices, faces)
     opening = eye_opening(vertices, skin, corners, (centre, radius))
     if opening is None:
         return None
-    return margin_seeds(vertices, skin, opening, SEED_TOLERANCE_REL * opening.width)
+    width = float(np.linalg.norm(corners[1] - corners[0]))
+    return margin_seeds(vertices, skin, opening, SEED_STEPS * EYE_STEP_REL * width)
 
 
 def lid_rims(
@@ -364,14 +374,26 @@ def lid_rims(
         upper.append(up[np.argsort(uvw[up, 0], kind="stable")])
         top, bottom = _smooth_run(top, uvw, width, lowest=True), _smooth_run(bottom, uvw, width, lowest=False)
         margin.append(_overlap(top, bottom, uvw))
-        lower.append(_overlap(bottom, top, uvw))
+        lower.append(bottom)
     return LidRims(origin, axes, width, tuple(upper), tuple(lower), tuple(margin))
 
 
 def _eye(
-    vertices: np.ndarray, faces: np.ndarray, parts: Mapping[str, np.ndarray], regions, side: str
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    parts: Mapping[str, np.ndarray],
+    regions,
+    side: str,
+    corners: np.ndarray,
 ) -> tuple[np.ndarray, float] | None:
-    """The eyeball's sphere: through the ``eye_<side>`` part's vertices, else through the lids'."""
+    """The eyeball's sphere: the sclera's (``mimetic.mesh.openings.eyeball``: the largest spherical
+    piece between the ``corners`` (2, 3)), else through the ``eye_<side>`` part's vertices, else
+    through the lids'. A sphere through the whole part (ICT's: cornea, iris and films with the
+    sclera) is larger and lies farther back, and put margins that show in front of the eyeball
+    inside it, as if tucked."""
+    ball = eyeball(vertices, faces, corners)
+    if ball is not None:
+        return ball
     part = parts.get(f"eye_{side}")
     if part is not None and len(part):
         ids = np.unique(faces[part])
@@ -416,7 +438,7 @@ def find_lid_contacts(
     for side in ("L", "R"):
         if side not in corners:
             continue
-        eye = _eye(vertices, faces, parts, regions, side)
+        eye = _eye(vertices, faces, parts, regions, side, np.asarray(corners[side], dtype=np.float64))
         if eye is None:
             continue
         rims = lid_rims(
@@ -601,7 +623,12 @@ def closing_weights(
     share = lid_profile(vertices, skin, rims.upper[0], lower, LID_BAND_REL * rims.width)
     ids = np.flatnonzero((share > 0) | (out[:, lid] > 0))
     at = rims.uvw(vertices[ids])[:, 0] / rims.width
-    want = np.clip(closing(np.clip(at, u[0], u[-1])), 0.0, None)  # past the ends: the end's
+    # past the ends: the end's. Never below the margin's own weights (linear between its columns):
+    # the spline rounds off the steep rise of the weights into the inner corner, which left the lid
+    # short of the lower one there; a column that would close too far the contact stops
+    order = np.argsort(u, kind="stable")
+    t = np.clip(at, u.min(), u.max())
+    want = np.clip(np.maximum(closing(t), np.interp(t, u[order], needed[order])), 0.0, None)
     total = out[ids, lid] + out[ids, head]  # a vertex the head bone does not weight only gives
     new = np.minimum(share[ids] * want, total)
     given = out[ids, lid] - new
