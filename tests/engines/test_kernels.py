@@ -18,15 +18,17 @@ from mimetic.engines.chain import (
 from mimetic.engines.skinning import linear_blend_skinning
 
 
-def numpy_bridged_margin(u: np.ndarray, v: np.ndarray, span: float) -> np.ndarray:
-    """The (j, j, j) formula ``chain._lower_line`` used before the kernel."""
+def numpy_bridged_margin(u: np.ndarray, v: np.ndarray, span: float, column: float) -> np.ndarray:
+    """The (j, j, j) formula of ``chain._lower_line``: chords up to ``span`` over dips, up to ``column``
+    over anything."""
     j = len(u)
     k = np.arange(j)
     between = (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])
     width = u[None, :] - u[:, None]
     slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
     chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]
-    usable = between & (width <= span)[:, :, None]
+    dip = (v[None, None, :] <= v[:, None, None]) & (v[None, None, :] <= v[None, :, None])
+    usable = between & ((width <= column)[:, :, None] | ((width <= span)[:, :, None] & dip))
     return np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1)))
 
 
@@ -36,9 +38,9 @@ def test_bridged_margin_gives_the_bits_of_the_numpy_formula(seed):
     u = np.sort(rng.uniform(-1, 1, 20))
     v = rng.normal(0, 0.1, 20)
     u_before, v_before = u.copy(), v.copy()
-    got = kernels.bridged_margin(u, v, 0.4)
+    got = kernels.bridged_margin(u, v, 0.4, 0.15)
     assert got.shape == (20,) and got.dtype == np.float64
-    np.testing.assert_array_equal(got, numpy_bridged_margin(u, v, 0.4))
+    np.testing.assert_array_equal(got, numpy_bridged_margin(u, v, 0.4, 0.15))
     np.testing.assert_array_equal(u, u_before)
     np.testing.assert_array_equal(v, v_before)
 
