@@ -12,6 +12,7 @@ from mimetic.engines.chain import (
     LID_SOLVE_STEPS,
     _clearance,
     _least_opening,
+    _lower_line,
     _median,
     _turn_parts,
 )
@@ -41,6 +42,24 @@ def test_bridged_margin_gives_the_bits_of_the_numpy_formula(seed):
     got = kernels.bridged_margin(u, v, 0.4, 0.15)
     assert got.shape == (20,) and got.dtype == np.float64
     np.testing.assert_array_equal(got, numpy_bridged_margin(u, v, 0.4, 0.15))
+    np.testing.assert_array_equal(u, u_before)
+    np.testing.assert_array_equal(v, v_before)
+
+
+def test_lower_line_follows_a_rise_into_the_corner_and_bridges_dips():
+    """The contact line (``chain._lower_line``) keeps a convex rise into a corner (bridging it lifted
+    the line 0.27 cm over ICT identity s2 σ 2's canthus), bridges a dip up to ``span`` wide, and any
+    turn within ``column``."""
+    u = np.array([0.0, 0.01, 0.1, 0.2, 0.3, 0.4, 0.5])
+    v = np.array([0.3, 0.0, -0.1, -0.15, -0.3, -0.15, -0.15])  # a wall, a slope, a dip at 0.3
+    u_before, v_before = u.copy(), v.copy()
+    line_u, line_v, step = _lower_line(np.column_stack([u, v, np.zeros(7)]), 0.25, 0.0)
+    assert line_u.shape == line_v.shape == (7,) and line_v.dtype == np.float64
+    np.testing.assert_array_equal(line_v[:4], v[:4])  # the rise stays where it is
+    assert line_v[4] == pytest.approx(-0.15)  # the dip is bridged
+    _, cut, _ = _lower_line(np.column_stack([u, v, np.zeros(7)]), 0.25, 0.15)
+    assert cut[1] == pytest.approx(0.3 - 0.4 * 0.01 / 0.1)  # the wall's foot: under the column's chord
+    assert step == pytest.approx(0.1)
     np.testing.assert_array_equal(u, u_before)
     np.testing.assert_array_equal(v, v_before)
 
