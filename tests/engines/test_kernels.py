@@ -60,6 +60,8 @@ def test_lower_line_follows_a_rise_into_the_corner_and_bridges_dips():
     _, cut, _ = _lower_line(np.column_stack([u, v, np.zeros(7)]), 0.25, 0.15)
     assert cut[1] == pytest.approx(0.3 - 0.4 * 0.01 / 0.1)  # the wall's foot: under the column's chord
     assert step == pytest.approx(0.1)
+    wall = np.column_stack([[0.0, 0.001, 0.002, 0.1], [0.1, 0.3, 0.0, -0.1], np.zeros(4)])
+    assert _lower_line(wall, 0.25, 0.05)[1][0] == pytest.approx(0.3)  # the end stands at the wall's top
     np.testing.assert_array_equal(u, u_before)
     np.testing.assert_array_equal(v, v_before)
 

@@ -104,15 +104,21 @@ def _lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndar
     two ends raised to the highest chord between two margin points around it at most ``span``
     apart), and over any turn no wider than ``column``: the upper lid's margin is stiff (the tarsal
     plate) and does not sink into the lower one's dips; it follows the lower lid's rise into a
-    corner, or would stand off it there by the rise. ``step`` is the median spacing along u (0 for
-    fewer than two points)."""
+    corner, or would stand off it there by the rise. Each end is raised to the highest point within
+    ``column`` of it. ``step`` is the median spacing along u (0 for fewer than two points)."""
     order = np.argsort(points[:, 0], kind="stable")
     u, v = points[order, 0], points[order, 1]
     step = _median(np.diff(u)) if len(u) > 1 else 0.0
     if len(u) < 3:
         return u, v, step
-    # v_i = max(v_i, v_a + (u_i - u_a) (v_b - v_a) / (u_b - u_a)) over a < i < b with u_b - u_a <= span
-    return u, bridged_margin(u, v, span, column), step
+    # v_i = max(v_i, v_a + (u_i - u_a) (v_b - v_a) / (u_b - u_a)) over a < i < b with u_b - u_a <= column,
+    # or <= span where v_i <= min(v_a, v_b)
+    line = bridged_margin(u, v, span, column)
+    # each end stands as high as the margin within a column of it: a canthus' wall (a stack of rim
+    # vertices at one u) holds the lid's corner at its top, not beside its foot
+    line[0] = max(line[0], v[: np.searchsorted(u, u[0] + column, side="right")].max())
+    line[-1] = max(line[-1], v[np.searchsorted(u, u[-1] - column, side="left") :].max())
+    return u, line, step
 
 
 def _median(x: np.ndarray) -> float:
