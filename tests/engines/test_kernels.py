@@ -17,6 +17,7 @@ from mimetic.engines.chain import (
     _turn_parts,
 )
 from mimetic.engines.skinning import linear_blend_skinning
+from mimetic.rig.anatomy.lids import lower_line
 
 
 def numpy_bridged_margin(u: np.ndarray, v: np.ndarray, span: float, column: float) -> np.ndarray:
@@ -64,6 +65,20 @@ def test_lower_line_follows_a_rise_into_the_corner_and_bridges_dips():
     assert _lower_line(wall, 0.25, 0.05)[1][0] == pytest.approx(0.3)  # the end stands at the wall's top
     np.testing.assert_array_equal(u, u_before)
     np.testing.assert_array_equal(v, v_before)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_lower_line_is_the_rigs_line_compiled(seed):
+    """The chain's per-frame line (compiled) is the one the closing weights aim at (numpy)."""
+    rng = np.random.default_rng(seed)
+    points = np.column_stack([rng.uniform(0, 3, 25), rng.normal(0, 0.2, 25), rng.normal(0, 0.1, 25)])
+    before = points.copy()
+    u, v, _ = _lower_line(points, 0.3, 0.1)
+    want_u, want_v = lower_line(points, 0.3, 0.1)
+    assert v.shape == want_v.shape == (25,)
+    np.testing.assert_array_equal(u, want_u)
+    np.testing.assert_array_equal(v, want_v)
+    np.testing.assert_array_equal(points, before)
 
 
 def test_median_is_numpys():

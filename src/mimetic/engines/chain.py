@@ -41,8 +41,14 @@ from mimetic.engines.kernels import (
 from mimetic.engines.muscles import LID_RIGID_WEIGHT
 from mimetic.engines.skinning import IDENTITY, bone_transforms
 from mimetic.head.parts import eyeball_profile
-from mimetic.mesh.openings import EYE_STEP_REL
-from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, LID_THICKNESS_REL, eye_frame
+from mimetic.rig.anatomy.lids import (
+    LID_BRIDGE_REL,
+    LID_CLEARANCE_REL,
+    LID_COLUMN_REL,
+    LID_CONTACT_GAP_REL,
+    LID_THICKNESS_REL,
+    eye_frame,
+)
 from mimetic.rig.model import Rig
 
 SCULPTOR_MARGIN_REL = LID_CLEARANCE_REL  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
@@ -50,13 +56,6 @@ LID_SCULPTED_WEIGHT = 0.05
 """Vertices a lid bone weights this much or more are sculpted with the lid regions."""
 LID_COLUMN_REACH = 2.0
 """How far along the lid (in median steps of the lower margin) a contact opens the upper lid's column."""
-LID_BRIDGE_REL = 0.1
-"""The upper lid bridges dips of the lower margin up to this × the eye's width along it."""
-LID_COLUMN_REL = 2 * EYE_STEP_REL
-"""... and rests on any chord of the lower margin this short (× the eye's width: two steps of the grid
-the eye's opening is seen on, ``mimetic.mesh.openings``), dip or not: where the lower margin turns
-steeply into a corner its rim runs down a wall of the canthus, and the lid closes over the corner
-rather than into it (the margin read one vertex per grid column cuts that corner as well)."""
 LID_MAX_OPENING_RAD = 1.5
 """The most a contact turns the upper lid back (rad)."""
 LID_SOLVE_STEPS = 8
@@ -99,13 +98,9 @@ def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarra
 
 
 def _lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """(u, v, step) of the line the upper lid closes onto: the lower margin (j, 3 in the eye frame)
-    sorted by u, bridged over its dips no wider than ``span`` along u (each point no higher than the
-    two ends raised to the highest chord between two margin points around it at most ``span``
-    apart), and over any turn no wider than ``column``: the upper lid's margin is stiff (the tarsal
-    plate) and does not sink into the lower one's dips; it follows the lower lid's rise into a
-    corner, or would stand off it there by the rise. Each end is raised to the highest point within
-    ``column`` of it. ``step`` is the median spacing along u (0 for fewer than two points)."""
+    """(u, v, step) of the line the upper lid closes onto (``mimetic.rig.anatomy.lids.lower_line``,
+    compiled: ``kernels.bridged_margin``) for the lower margin (j, 3 in the eye frame). ``step`` is
+    the median spacing along u (0 for fewer than two points)."""
     order = np.argsort(points[:, 0], kind="stable")
     u, v = points[order, 0], points[order, 1]
     step = _median(np.diff(u)) if len(u) > 1 else 0.0

@@ -19,16 +19,18 @@ lids):
   heads have. The lower rim's highest vertex per column (columns as wide as the rim's edges run
   along ``u``) is the lower *margin*; the upper rim's lowest vertex per column the upper margin.
 * **Contact** (``find_lid_contacts``, ``Rig.anatomy.lids``): per eye and layer, every upper rim
-  vertex is a contact vertex and the lower margin the polyline it meets. The engines keep each
-  contact vertex on or above that polyline, in the eye frame at the vertex's own ``u``
-  (``mimetic.engines.chain.Chain``): the upper lid yields, the lower stays. On a rig without
-  eyeballs as separate parts, the eye is the sphere through the lid regions.
+  vertex is a contact vertex and the lower margin, bridged over its dips and a corner's wall
+  (``lower_line``), the line it meets. The engines keep each contact vertex on or above that line,
+  in the eye frame at the vertex's own ``u`` (``mimetic.engines.chain.Chain``): the upper lid
+  yields, the lower stays. The eye is the sclera's sphere (``mimetic.mesh.openings.eyeball``), on a
+  rig without one the sphere through the eye part or the lid regions.
 * **Closing weights** (``closing_weights``): the upper-lid bone weight of each column of the
   visible upper margin is the one whose skinning (as the engines skin, eyeball sculptor included)
-  at the closing angle (the ``eyelid_upper`` channel's maximum) brings it onto the lower margin;
-  those weights are smoothed along the margin (a smoothing spline in ``u``), and every other
-  upper-lid vertex keeps its share of its column's margin weight. A partial closure (a wink) is
-  then a smooth curve, and a skinned export without the contact closes too.
+  at the closing angle (the ``eyelid_upper`` channel's maximum) brings it onto that line; those
+  weights are smoothed along the margin (a smoothing spline in ``u``, never below the columns' own
+  weights), and every other upper-lid vertex keeps its share of its column's margin weight. A
+  partial closure (a wink) is then a smooth curve, and a skinned export without the contact closes
+  too.
 * **Pivot** (``closing_pivot``, used by the transfer): an opening taller than the closing angle can
   close turning about the eye's centre has its upper lid turn about a point set back behind it, so
   the margin travels farther and slides over the eyeball.
@@ -64,7 +66,9 @@ from mimetic.mesh.openings import (
 )
 
 __all__ = [
+    "LID_BRIDGE_REL",
     "LID_CLEARANCE_REL",
+    "LID_COLUMN_REL",
     "LID_CONTACT_GAP_REL",
     "LID_THICKNESS_REL",
     "LidContact",
@@ -77,6 +81,7 @@ __all__ = [
     "find_lid_contacts",
     "gaze_rim",
     "lid_rims",
+    "lower_line",
     "sculpt_lids",
 ]
 
@@ -101,6 +106,13 @@ OUTLIER_REL = 0.1
 """A margin point this far (× the lid width) beyond the line through its neighbours is not margin."""
 MIN_MARGIN = 3
 """A layer whose lower margin has fewer columns than this has no contact."""
+LID_BRIDGE_REL = 0.1
+"""The upper lid bridges dips of the lower margin up to this × the eye's width along it (``lower_line``)."""
+LID_COLUMN_REL = 2 * EYE_STEP_REL
+"""... and rests on any chord of the lower margin this short (× the eye's width: two steps of the grid
+the eye's opening is seen on, ``mimetic.mesh.openings``), dip or not: where the lower margin turns
+steeply into a corner its rim runs down a wall of the canthus, and the lid closes over the corner
+rather than into it (the margin read one vertex per grid column cuts that corner as well)."""
 SMOOTHING = 1e-5
 """Penalty of the smoothing spline of the closing weights along the margin (``u`` in lid widths)."""
 BISECTIONS = 40
@@ -485,6 +497,35 @@ def sculpt_lids(
     return out
 
 
+def lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v), each (j,), of the line the upper lid closes onto: the lower margin (j, 3 in the eye
+    frame) sorted by u, each point raised to the highest chord between two margin points around it
+    at most ``column`` apart, or at most ``span`` apart where it lies no higher than both (a dip),
+    and each end raised to the highest point within ``column`` of it.
+
+    The upper lid's margin is stiff (the tarsal plate): it does not sink into the lower one's dips,
+    but follows its rise into a corner (bridged, it would stand off it by the rise); a canthus' wall
+    (rim vertices stacked at one u) holds the lid's corner at its top, not beside its foot. The
+    closing weights aim at this line and the engines' contact stops the lid on it
+    (``mimetic.engines.chain``, compiled per frame).
+    """
+    order = np.argsort(points[:, 0], kind="stable")
+    u, v = points[order, 0], points[order, 1]
+    if len(u) < 3:
+        return u, v
+    k = np.arange(len(u))
+    between = (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])  # (a, b, i)
+    width = u[None, :] - u[:, None]  # (a, b)
+    slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
+    chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]
+    dip = (v[None, None, :] <= v[:, None, None]) & (v[None, None, :] <= v[None, :, None])
+    usable = between & ((width <= column)[:, :, None] | ((width <= span)[:, :, None] & dip))
+    line = np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1)))
+    line[0] = max(line[0], v[: np.searchsorted(u, u[0] + column, side="right")].max())
+    line[-1] = max(line[-1], v[np.searchsorted(u, u[-1] - column, side="left") :].max())
+    return u, line
+
+
 def closing_pivot(rims: LidRims, vertices: np.ndarray, centre: np.ndarray, closed_rad: float) -> np.ndarray:
     """The upper lid's pivot (3,): the eye's ``centre``, or set back behind it along the gaze until the
     tallest column of the visible margin (``rims``, at rest ``vertices``) closes within
@@ -591,7 +632,11 @@ def closing_weights(
     if rims is None or len(rims.upper_margin[0]) < MIN_MARGIN or len(rims.lower[0]) < MIN_MARGIN:
         return out
     margin, lower = rims.upper_margin[0], rims.lower[0]
-    low = rims.uvw(vertices[lower])  # (j, 3)
+    # the line the contact stops the lid on: aiming below it (into a corner's wall) the contact opens
+    # the column again, and its neighbours with it
+    low = np.column_stack(
+        lower_line(rims.uvw(vertices[lower]), LID_BRIDGE_REL * rims.width, LID_COLUMN_REL * rims.width)
+    )  # (j, 2)
     p = vertices[margin]  # (k, 3)
     turn = _rotation_x(closed_rad)
     swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
