@@ -99,7 +99,9 @@ SPAN = (0.05, 0.95)
 """The part of the corner chord (fractions from the inner corner) whose rims are contacts."""
 SEED_STEPS = 2.0
 """A rim vertex within this many steps of the eye's grid (``mimetic.mesh.openings.EYE_STEP_REL``) of
-the opening's edge, seen from the front, is on the margin (``_seen_margins``)."""
+the opening's edge, seen from the front, is on the margin (``_seen_margins``). Not fitted: the grid's
+own step, as ``mimetic.quality`` reads the margins; checked on the calibration heads of
+``benchmarks/sweep_motion.py`` (ICT's neutral, identities s1-s2 σ 1, s2-s6 σ 2)."""
 MIN_CHAIN = 0.25
 """A piece of rim is a margin when its envelope spans this much of the corner chord."""
 OUTLIER_REL = 0.1
@@ -112,7 +114,9 @@ LID_COLUMN_REL = 2 * EYE_STEP_REL
 """... and rests on any chord of the lower margin this short (× the eye's width: two steps of the grid
 the eye's opening is seen on, ``mimetic.mesh.openings``), dip or not: where the lower margin turns
 steeply into a corner its rim runs down a wall of the canthus, and the lid closes over the corner
-rather than into it (the margin read one vertex per grid column cuts that corner as well)."""
+rather than into it (the margin read one vertex per grid column cuts that corner as well). Not
+fitted: two grid steps, the widest chord between two columns' vertices; checked on the calibration
+heads of ``benchmarks/sweep_motion.py`` (ICT's neutral, identities s1-s2 σ 1, s2-s6 σ 2)."""
 SMOOTHING = 1e-5
 """Penalty of the smoothing spline of the closing weights along the margin (``u`` in lid widths)."""
 BISECTIONS = 40
