@@ -12,21 +12,25 @@ from mimetic.engines.chain import (
     LID_SOLVE_STEPS,
     _clearance,
     _least_opening,
+    _lower_line,
     _median,
     _turn_parts,
 )
 from mimetic.engines.skinning import linear_blend_skinning
+from mimetic.rig.anatomy.lids import lower_line
 
 
-def numpy_bridged_margin(u: np.ndarray, v: np.ndarray, span: float) -> np.ndarray:
-    """The (j, j, j) formula ``chain._lower_line`` used before the kernel."""
+def numpy_bridged_margin(u: np.ndarray, v: np.ndarray, span: float, column: float) -> np.ndarray:
+    """The (j, j, j) formula of ``chain._lower_line``: chords up to ``span`` over dips, up to ``column``
+    over anything."""
     j = len(u)
     k = np.arange(j)
     between = (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])
     width = u[None, :] - u[:, None]
     slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
     chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]
-    usable = between & (width <= span)[:, :, None]
+    dip = (v[None, None, :] <= v[:, None, None]) & (v[None, None, :] <= v[None, :, None])
+    usable = between & ((width <= column)[:, :, None] | ((width <= span)[:, :, None] & dip))
     return np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1)))
 
 
@@ -36,11 +40,45 @@ def test_bridged_margin_gives_the_bits_of_the_numpy_formula(seed):
     u = np.sort(rng.uniform(-1, 1, 20))
     v = rng.normal(0, 0.1, 20)
     u_before, v_before = u.copy(), v.copy()
-    got = kernels.bridged_margin(u, v, 0.4)
+    got = kernels.bridged_margin(u, v, 0.4, 0.15)
     assert got.shape == (20,) and got.dtype == np.float64
-    np.testing.assert_array_equal(got, numpy_bridged_margin(u, v, 0.4))
+    np.testing.assert_array_equal(got, numpy_bridged_margin(u, v, 0.4, 0.15))
     np.testing.assert_array_equal(u, u_before)
     np.testing.assert_array_equal(v, v_before)
+
+
+def test_lower_line_follows_a_rise_into_the_corner_and_bridges_dips():
+    """The contact line (``chain._lower_line``) keeps a convex rise into a corner (bridging it lifted
+    the line 0.27 cm over ICT identity s2 σ 2's canthus), bridges a dip up to ``span`` wide, and any
+    turn within ``column``."""
+    u = np.array([0.0, 0.01, 0.1, 0.2, 0.3, 0.4, 0.5])
+    v = np.array([0.3, 0.0, -0.1, -0.15, -0.3, -0.15, -0.15])  # a wall, a slope, a dip at 0.3
+    u_before, v_before = u.copy(), v.copy()
+    line_u, line_v, step = _lower_line(np.column_stack([u, v, np.zeros(7)]), 0.25, 0.0)
+    assert line_u.shape == line_v.shape == (7,) and line_v.dtype == np.float64
+    np.testing.assert_array_equal(line_v[:4], v[:4])  # the rise stays where it is
+    assert line_v[4] == pytest.approx(-0.15)  # the dip is bridged
+    _, cut, _ = _lower_line(np.column_stack([u, v, np.zeros(7)]), 0.25, 0.15)
+    assert cut[1] == pytest.approx(0.3 - 0.4 * 0.01 / 0.1)  # the wall's foot: under the column's chord
+    assert step == pytest.approx(0.1)
+    wall = np.column_stack([[0.0, 0.001, 0.002, 0.1], [0.1, 0.3, 0.0, -0.1], np.zeros(4)])
+    assert _lower_line(wall, 0.25, 0.05)[1][0] == pytest.approx(0.3)  # the end stands at the wall's top
+    np.testing.assert_array_equal(u, u_before)
+    np.testing.assert_array_equal(v, v_before)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_lower_line_is_the_rigs_line_compiled(seed):
+    """The chain's per-frame line (compiled) is the one the closing weights aim at (numpy)."""
+    rng = np.random.default_rng(seed)
+    points = np.column_stack([rng.uniform(0, 3, 25), rng.normal(0, 0.2, 25), rng.normal(0, 0.1, 25)])
+    before = points.copy()
+    u, v, _ = _lower_line(points, 0.3, 0.1)
+    want_u, want_v = lower_line(points, 0.3, 0.1)
+    assert v.shape == want_v.shape == (25,)
+    np.testing.assert_array_equal(u, want_u)
+    np.testing.assert_array_equal(v, want_v)
+    np.testing.assert_array_equal(points, before)
 
 
 def test_median_is_numpys():

@@ -110,6 +110,23 @@ def test_tall_eyes_close_at_the_lids_maximum():
         assert (lid.head - eye.head)[2] < -0.1  # set back behind the eye's centre (cm)
 
 
+def test_closed_lids_meet_into_the_inner_corners():
+    """ICT identity s1 at σ 1 (a calibration head of ``benchmarks/sweep_motion.py``): the innermost
+    upper margin vertex was no contact vertex (the rim read within 3 % of the opening's width, the
+    lower margin cut to the upper's rest span) and closed 0.13 cm past the lower lid's rise into the
+    canthus. At the lids' maximum every column now meets within 0.1 cm and none crosses."""
+    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
+
+    rig = identity_rig(1, 1.0)
+    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
+    for side in "LR":
+        margins = find_lid_margins(rig, side)
+        assert margins.usable
+        gap = lid_gap(margins, closed)
+        assert gap.gaps.shape == (33,)
+        assert gap.smallest > -0.01 and gap.largest <= 0.1  # cm
+
+
 @pytest.mark.filterwarnings("ignore")
 def test_a_chin_low_over_the_neck_opens_without_a_tear(ict):
     """An identity at σ 2 (s105) whose chin hangs low over the neck: with the neck's skin fixed to

@@ -41,7 +41,14 @@ from mimetic.engines.kernels import (
 from mimetic.engines.muscles import LID_RIGID_WEIGHT
 from mimetic.engines.skinning import IDENTITY, bone_transforms
 from mimetic.head.parts import eyeball_profile
-from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_CONTACT_GAP_REL, LID_THICKNESS_REL, eye_frame
+from mimetic.rig.anatomy.lids import (
+    LID_BRIDGE_REL,
+    LID_CLEARANCE_REL,
+    LID_COLUMN_REL,
+    LID_CONTACT_GAP_REL,
+    LID_THICKNESS_REL,
+    eye_frame,
+)
 from mimetic.rig.model import Rig
 
 SCULPTOR_MARGIN_REL = LID_CLEARANCE_REL  # lids stay this far outside the eyeball (0.005 cm on a 23 cm head)
@@ -49,8 +56,6 @@ LID_SCULPTED_WEIGHT = 0.05
 """Vertices a lid bone weights this much or more are sculpted with the lid regions."""
 LID_COLUMN_REACH = 2.0
 """How far along the lid (in median steps of the lower margin) a contact opens the upper lid's column."""
-LID_BRIDGE_REL = 0.1
-"""The upper lid bridges dips of the lower margin up to this × the eye's width along it."""
 LID_MAX_OPENING_RAD = 1.5
 """The most a contact turns the upper lid back (rad)."""
 LID_SOLVE_STEPS = 8
@@ -72,6 +77,7 @@ class EyeContact:
     follower_u: np.ndarray  # (f,) their rest u
     reach: float  # rig units along u: how far a contact opens the column
     bridge: float  # rig units along u: the widest dip of the lower margin the upper lid bridges
+    column: float  # rig units along u: the widest chord it rests on whatever the margin's shape
 
 
 def _turn_parts(d: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -91,19 +97,23 @@ def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarra
     return lambda angle: along + across * np.cos(angle)[:, None] + cross * np.sin(angle)[:, None]
 
 
-def _lower_line(points: np.ndarray, span: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """(u, v, step) of the line the upper lid closes onto: the lower margin (j, 3 in the eye frame)
-    sorted by u, bridged over its dips no wider than ``span`` along u (each point raised to the
-    highest chord between two margin points around it at most ``span`` apart): the upper lid's margin
-    is stiff (the tarsal plate), and does not follow the lower lid's curl into a corner point by
-    point. ``step`` is the median spacing along u (0 for fewer than two points)."""
+def _lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """(u, v, step) of the line the upper lid closes onto (``mimetic.rig.anatomy.lids.lower_line``,
+    compiled: ``kernels.bridged_margin``) for the lower margin (j, 3 in the eye frame). ``step`` is
+    the median spacing along u (0 for fewer than two points)."""
     order = np.argsort(points[:, 0], kind="stable")
     u, v = points[order, 0], points[order, 1]
     step = _median(np.diff(u)) if len(u) > 1 else 0.0
     if len(u) < 3:
         return u, v, step
-    # v_i = max(v_i, v_a + (u_i - u_a) (v_b - v_a) / (u_b - u_a)) over a < i < b with u_b - u_a <= span
-    return u, bridged_margin(u, v, span), step
+    # v_i = max(v_i, v_a + (u_i - u_a) (v_b - v_a) / (u_b - u_a)) over a < i < b with u_b - u_a <= column,
+    # or <= span where v_i <= min(v_a, v_b)
+    line = bridged_margin(u, v, span, column)
+    # each end stands as high as the margin within a column of it: a canthus' wall (a stack of rim
+    # vertices at one u) holds the lid's corner at its top, not beside its foot
+    line[0] = max(line[0], v[: np.searchsorted(u, u[0] + column, side="right")].max())
+    line[-1] = max(line[-1], v[np.searchsorted(u, u[-1] - column, side="left") :].max())
+    return u, line, step
 
 
 def _median(x: np.ndarray) -> float:
@@ -150,7 +160,9 @@ def prepare_lid_contacts(rig: Rig, weights: sp.csc_matrix | None = None) -> list
         layers, steps = [], []
         for contact in layers_of:
             rest_upper = (v[contact.upper] - origin) @ axes.T
-            line = _lower_line((v[contact.lower] - origin) @ axes.T, LID_BRIDGE_REL * width)
+            line = _lower_line(
+                (v[contact.lower] - origin) @ axes.T, LID_BRIDGE_REL * width, LID_COLUMN_REL * width
+            )
             floor = np.minimum(_clearance(rest_upper, line), LID_CONTACT_GAP_REL * rig.scale)
             layers.append((contact.upper, contact.lower, contact.tucked, floor, rest_upper[:, 0]))
             if not contact.tucked and len(line[0]) > 1:
@@ -172,6 +184,7 @@ def prepare_lid_contacts(rig: Rig, weights: sp.csc_matrix | None = None) -> list
                 (v[followers] - origin) @ axes[0],
                 LID_COLUMN_REACH * (max(steps) if steps else 0.0),
                 LID_BRIDGE_REL * width,
+                LID_COLUMN_REL * width,
             )
         )
     return out
@@ -213,7 +226,7 @@ def keep_lids_apart(
         # contacts that clear that point by their floor cannot cross, so an open eye builds no line
         if np.all(high[:, 1] - low[:, 1].max() > least + 1e-6 * eye.bridge):
             continue
-        line = _lower_line(low, eye.bridge)
+        line = _lower_line(low, eye.bridge, eye.column)
         crossing = _clearance(high, line, beyond=not columns) < least
         if not crossing.any():
             continue

@@ -18,9 +18,11 @@ import numpy as np
 
 
 @numba.njit(cache=True, error_model="numpy")
-def bridged_margin(u: np.ndarray, v: np.ndarray, span: float) -> np.ndarray:
+def bridged_margin(u: np.ndarray, v: np.ndarray, span: float, column: float) -> np.ndarray:
     """``v`` (j,) raised to the highest chord between two points a < i < b with ``u[b] - u[a] <= span``
-    (``chain._lower_line``; ``u`` (j,) sorted). NaN where a chord is NaN, as numpy's max gives."""
+    that passes over a dip (``v[i]`` no higher than ``v[a]`` and ``v[b]``), or with ``u[b] - u[a] <=
+    column`` whatever the shape (``chain._lower_line``; ``u`` (j,) sorted). NaN where a chord is NaN,
+    as numpy's max gives."""
     j = len(u)
     high = np.full(j, -np.inf)
     for a in range(j):
@@ -28,8 +30,11 @@ def bridged_margin(u: np.ndarray, v: np.ndarray, span: float) -> np.ndarray:
             width = u[b] - u[a]
             if not width <= span:
                 continue
+            short = width <= column
             slope = (v[b] - v[a]) / max(width, 1e-300)
             for i in range(a + 1, b):
+                if not short and (v[i] > v[a] or v[i] > v[b]):  # a long chord bridges dips only
+                    continue
                 chord = v[a] + (u[i] - u[a]) * slope
                 if np.isnan(high[i]):
                     continue

@@ -19,16 +19,18 @@ lids):
   heads have. The lower rim's highest vertex per column (columns as wide as the rim's edges run
   along ``u``) is the lower *margin*; the upper rim's lowest vertex per column the upper margin.
 * **Contact** (``find_lid_contacts``, ``Rig.anatomy.lids``): per eye and layer, every upper rim
-  vertex is a contact vertex and the lower margin the polyline it meets. The engines keep each
-  contact vertex on or above that polyline, in the eye frame at the vertex's own ``u``
-  (``mimetic.engines.chain.Chain``): the upper lid yields, the lower stays. On a rig without
-  eyeballs as separate parts, the eye is the sphere through the lid regions.
+  vertex is a contact vertex and the lower margin, bridged over its dips and a corner's wall
+  (``lower_line``), the line it meets. The engines keep each contact vertex on or above that line,
+  in the eye frame at the vertex's own ``u`` (``mimetic.engines.chain.Chain``): the upper lid
+  yields, the lower stays. The eye is the sclera's sphere (``mimetic.mesh.openings.eyeball``), on a
+  rig without one the sphere through the eye part or the lid regions.
 * **Closing weights** (``closing_weights``): the upper-lid bone weight of each column of the
   visible upper margin is the one whose skinning (as the engines skin, eyeball sculptor included)
-  at the closing angle (the ``eyelid_upper`` channel's maximum) brings it onto the lower margin;
-  those weights are smoothed along the margin (a smoothing spline in ``u``), and every other
-  upper-lid vertex keeps its share of its column's margin weight. A partial closure (a wink) is
-  then a smooth curve, and a skinned export without the contact closes too.
+  at the closing angle (the ``eyelid_upper`` channel's maximum) brings it onto that line; those
+  weights are smoothed along the margin (a smoothing spline in ``u``, never below the columns' own
+  weights), and every other upper-lid vertex keeps its share of its column's margin weight. A
+  partial closure (a wink) is then a smooth curve, and a skinned export without the contact closes
+  too.
 * **Pivot** (``closing_pivot``, used by the transfer): an opening taller than the closing angle can
   close turning about the eye's centre has its upper lid turn about a point set back behind it, so
   the margin travels farther and slides over the eyeball.
@@ -53,8 +55,9 @@ from mimetic.head.parts import eyeball_profile
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.geometry import connected_components, edges_unique
 from mimetic.mesh.openings import (
-    SEED_TOLERANCE_REL,
+    EYE_STEP_REL,
     eye_opening,
+    eyeball,
     gaze_rim,
     margin_distance,
     margin_seeds,
@@ -63,7 +66,9 @@ from mimetic.mesh.openings import (
 )
 
 __all__ = [
+    "LID_BRIDGE_REL",
     "LID_CLEARANCE_REL",
+    "LID_COLUMN_REL",
     "LID_CONTACT_GAP_REL",
     "LID_THICKNESS_REL",
     "LidContact",
@@ -76,6 +81,7 @@ __all__ = [
     "find_lid_contacts",
     "gaze_rim",
     "lid_rims",
+    "lower_line",
     "sculpt_lids",
 ]
 
@@ -91,12 +97,26 @@ TUCKED_REL = 0.9
 """Rim vertices nearer the eye's centre than this × its radius are a skirt tucked inside the eyeball."""
 SPAN = (0.05, 0.95)
 """The part of the corner chord (fractions from the inner corner) whose rims are contacts."""
+SEED_STEPS = 2.0
+"""A rim vertex within this many steps of the eye's grid (``mimetic.mesh.openings.EYE_STEP_REL``) of
+the opening's edge, seen from the front, is on the margin (``_seen_margins``). Not fitted: the grid's
+own step, as ``mimetic.quality`` reads the margins; checked on the calibration heads of
+``benchmarks/sweep_motion.py`` (ICT's neutral, identities s1-s2 σ 1, s2-s6 σ 2)."""
 MIN_CHAIN = 0.25
 """A piece of rim is a margin when its envelope spans this much of the corner chord."""
 OUTLIER_REL = 0.1
 """A margin point this far (× the lid width) beyond the line through its neighbours is not margin."""
 MIN_MARGIN = 3
 """A layer whose lower margin has fewer columns than this has no contact."""
+LID_BRIDGE_REL = 0.1
+"""The upper lid bridges dips of the lower margin up to this × the eye's width along it (``lower_line``)."""
+LID_COLUMN_REL = 2 * EYE_STEP_REL
+"""... and rests on any chord of the lower margin this short (× the eye's width: two steps of the grid
+the eye's opening is seen on, ``mimetic.mesh.openings``), dip or not: where the lower margin turns
+steeply into a corner its rim runs down a wall of the canthus, and the lid closes over the corner
+rather than into it (the margin read one vertex per grid column cuts that corner as well). Not
+fitted: two grid steps, the widest chord between two columns' vertices; checked on the calibration
+heads of ``benchmarks/sweep_motion.py`` (ICT's neutral, identities s1-s2 σ 1, s2-s6 σ 2)."""
 SMOOTHING = 1e-5
 """Penalty of the smoothing spline of the closing weights along the margin (``u`` in lid widths)."""
 BISECTIONS = 40
@@ -283,12 +303,18 @@ def _seen_margins(
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The rim vertices along the upper and lower edges of the eye's opening seen from the front
     (``mimetic.mesh.openings``: the lids' silhouettes, whatever the regions say), or None when no
-    opening is found (eyes closed by faces)."""
+    opening is found (eyes closed by faces).
+
+    A rim vertex is on the opening's edge within ``SEED_STEPS`` steps of the grid the opening was
+    seen on (``EYE_STEP_REL`` × the corners' distance), as ``mimetic.quality`` reads the margins:
+    the opening's own width is narrower (it stops short of the canthus), and a tolerance taken from
+    it left the innermost margin vertices out of the contact, free to pass the lower lid."""
     skin = skin_faces(vertices, faces)
     opening = eye_opening(vertices, skin, corners, (centre, radius))
     if opening is None:
         return None
-    return margin_seeds(vertices, skin, opening, SEED_TOLERANCE_REL * opening.width)
+    width = float(np.linalg.norm(corners[1] - corners[0]))
+    return margin_seeds(vertices, skin, opening, SEED_STEPS * EYE_STEP_REL * width)
 
 
 def lid_rims(
@@ -364,14 +390,26 @@ def lid_rims(
         upper.append(up[np.argsort(uvw[up, 0], kind="stable")])
         top, bottom = _smooth_run(top, uvw, width, lowest=True), _smooth_run(bottom, uvw, width, lowest=False)
         margin.append(_overlap(top, bottom, uvw))
-        lower.append(_overlap(bottom, top, uvw))
+        lower.append(bottom)
     return LidRims(origin, axes, width, tuple(upper), tuple(lower), tuple(margin))
 
 
 def _eye(
-    vertices: np.ndarray, faces: np.ndarray, parts: Mapping[str, np.ndarray], regions, side: str
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    parts: Mapping[str, np.ndarray],
+    regions,
+    side: str,
+    corners: np.ndarray,
 ) -> tuple[np.ndarray, float] | None:
-    """The eyeball's sphere: through the ``eye_<side>`` part's vertices, else through the lids'."""
+    """The eyeball's sphere: the sclera's (``mimetic.mesh.openings.eyeball``: the largest spherical
+    piece between the ``corners`` (2, 3)), else through the ``eye_<side>`` part's vertices, else
+    through the lids'. A sphere through the whole part (ICT's: cornea, iris and films with the
+    sclera) is larger and lies farther back, and put margins that show in front of the eyeball
+    inside it, as if tucked."""
+    ball = eyeball(vertices, faces, corners)
+    if ball is not None:
+        return ball
     part = parts.get(f"eye_{side}")
     if part is not None and len(part):
         ids = np.unique(faces[part])
@@ -416,7 +454,7 @@ def find_lid_contacts(
     for side in ("L", "R"):
         if side not in corners:
             continue
-        eye = _eye(vertices, faces, parts, regions, side)
+        eye = _eye(vertices, faces, parts, regions, side, np.asarray(corners[side], dtype=np.float64))
         if eye is None:
             continue
         rims = lid_rims(
@@ -461,6 +499,35 @@ def sculpt_lids(
     d = points[inside] - centre
     out[inside] = centre + d * (limit[inside] / np.maximum(dist[inside], 1e-300))[:, None]
     return out
+
+
+def lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v), each (j,), of the line the upper lid closes onto: the lower margin (j, 3 in the eye
+    frame) sorted by u, each point raised to the highest chord between two margin points around it
+    at most ``column`` apart, or at most ``span`` apart where it lies no higher than both (a dip),
+    and each end raised to the highest point within ``column`` of it.
+
+    The upper lid's margin is stiff (the tarsal plate): it does not sink into the lower one's dips,
+    but follows its rise into a corner (bridged, it would stand off it by the rise); a canthus' wall
+    (rim vertices stacked at one u) holds the lid's corner at its top, not beside its foot. The
+    closing weights aim at this line and the engines' contact stops the lid on it
+    (``mimetic.engines.chain``, compiled per frame).
+    """
+    order = np.argsort(points[:, 0], kind="stable")
+    u, v = points[order, 0], points[order, 1]
+    if len(u) < 3:
+        return u, v
+    k = np.arange(len(u))
+    between = (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])  # (a, b, i)
+    width = u[None, :] - u[:, None]  # (a, b)
+    slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
+    chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]
+    dip = (v[None, None, :] <= v[:, None, None]) & (v[None, None, :] <= v[None, :, None])
+    usable = between & ((width <= column)[:, :, None] | ((width <= span)[:, :, None] & dip))
+    line = np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1)))
+    line[0] = max(line[0], v[: np.searchsorted(u, u[0] + column, side="right")].max())
+    line[-1] = max(line[-1], v[np.searchsorted(u, u[-1] - column, side="left") :].max())
+    return u, line
 
 
 def closing_pivot(rims: LidRims, vertices: np.ndarray, centre: np.ndarray, closed_rad: float) -> np.ndarray:
@@ -569,7 +636,11 @@ def closing_weights(
     if rims is None or len(rims.upper_margin[0]) < MIN_MARGIN or len(rims.lower[0]) < MIN_MARGIN:
         return out
     margin, lower = rims.upper_margin[0], rims.lower[0]
-    low = rims.uvw(vertices[lower])  # (j, 3)
+    # the line the contact stops the lid on: aiming below it (into a corner's wall) the contact opens
+    # the column again, and its neighbours with it
+    low = np.column_stack(
+        lower_line(rims.uvw(vertices[lower]), LID_BRIDGE_REL * rims.width, LID_COLUMN_REL * rims.width)
+    )  # (j, 2)
     p = vertices[margin]  # (k, 3)
     turn = _rotation_x(closed_rad)
     swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
@@ -601,7 +672,12 @@ def closing_weights(
     share = lid_profile(vertices, skin, rims.upper[0], lower, LID_BAND_REL * rims.width)
     ids = np.flatnonzero((share > 0) | (out[:, lid] > 0))
     at = rims.uvw(vertices[ids])[:, 0] / rims.width
-    want = np.clip(closing(np.clip(at, u[0], u[-1])), 0.0, None)  # past the ends: the end's
+    # past the ends: the end's. Never below the margin's own weights (linear between its columns):
+    # the spline rounds off the steep rise of the weights into the inner corner, which left the lid
+    # short of the lower one there; a column that would close too far the contact stops
+    order = np.argsort(u, kind="stable")
+    t = np.clip(at, u.min(), u.max())
+    want = np.clip(np.maximum(closing(t), np.interp(t, u[order], needed[order])), 0.0, None)
     total = out[ids, lid] + out[ids, head]  # a vertex the head bone does not weight only gives
     new = np.minimum(share[ids] * want, total)
     given = out[ids, lid] - new
