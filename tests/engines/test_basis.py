@@ -214,6 +214,35 @@ def test_evaluate_basis_matches_the_sum_written_out():
     assert np.all(error <= error_bound(basis, a, np.float32) + error_bound(basis, a, np.float64))
 
 
+def summed_in_term_order(basis: Basis, a: np.ndarray, dtype: type) -> np.ndarray:
+    """One frame (c,) -> (n, 3) as the single-frame layout promises to sum it: the neutral, then
+    t_j D_j for each non-zero term j in order (channels, then correctives), every product and sum
+    rounded to ``dtype`` (t_j in float64, then rounded)."""
+    pairs = basis.corrective_pairs
+    t = np.concatenate([a, a[pairs[:, 0]] * a[pairs[:, 1]]])  # (T,)
+    terms = np.concatenate([basis.deltas, basis.corrective_deltas]).astype(dtype)  # (T, n, 3)
+    v = basis.neutral.astype(dtype)
+    for t_j, delta in zip(t.astype(dtype), terms, strict=True):
+        if t_j != 0:
+            v = v + t_j * delta
+    return v
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_evaluate_basis_one_frame_adds_the_terms_to_the_neutral_in_order_bit_for_bit(dtype):
+    """Supports scattered in the vertex order (each term many runs): a layout that reads them in
+    another order, or writes a vertex to the wrong place, changes bits here."""
+    basis = regional_basis(4, n=3000, correctives=((3, 4), (0, 5), (6, 6)))
+    assert not np.any(basis.neutral == 0)  # a -0.0 plus a zero product may come out +0.0
+    rng = np.random.default_rng(11)
+    frames = [random_activations(rng, active=p) for p in (0.2, 0.5, 1.0)] + [np.eye(N_CHANNELS)[3]]
+    for a in frames:
+        expected = summed_in_term_order(basis, a, dtype)
+        got = evaluate_basis(basis, a, dtype=dtype)
+        assert got.shape == expected.shape and got.dtype == expected.dtype == dtype
+        np.testing.assert_array_equal(got, expected)
+
+
 @pytest.mark.parametrize("corrected", [False, True])
 def test_evaluate_basis_float32_is_within_its_bound_of_float64(corrected):
     basis = BASIS_WITH_CORRECTIVES if corrected else SMALL_BASIS
