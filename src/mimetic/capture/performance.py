@@ -79,7 +79,7 @@ millimetre it explains): with the shape prior alone, 49 channels from 68 markers
 depressors and a lid raiser on in acts that do not use them. Chosen on the calibration heads of
 ``benchmarks/validate_capture.py`` (markers route; gap to the ceiling, mean of the three): 5.0
 points without it, 4.6 at 0.005, 4.7 at 0.01, 5.4 at 0.03 (ICT's neutral alone: 8.2 at 0.1, 19.5
-at 0.3). Checked on the check heads: 5.6 → 5.1 (3.6 → 3.2, 6.4 → 6.1, 6.9 → 6.0). Image landmarks
+at 0.3). Checked on the check heads: 5.6 → 5.1 (3.6 → 3.2, 6.4 → 6.1, 6.9 → 6.1). Image landmarks
 do without it (their solve has the library prior)."""
 HEAD_ROUNDS = 8
 ROUNDS_TOLERANCE = 1e-3
