@@ -33,6 +33,7 @@ from scipy.interpolate import LinearNDInterpolator
 from mimetic.engines.attach import ride
 from mimetic.engines.kernels import (
     blend_skinning,
+    bridged_margin,
     channel_offsets,
     least_opening,
     triangle_heights,
@@ -47,7 +48,6 @@ from mimetic.rig.anatomy.lids import (
     LID_CONTACT_GAP_REL,
     LID_THICKNESS_REL,
     eye_frame,
-    lower_line,
 )
 from mimetic.rig.model import Rig
 
@@ -98,11 +98,22 @@ def _turner(d: np.ndarray, axis: np.ndarray) -> Callable[[np.ndarray], np.ndarra
 
 
 def _lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """(u, v, step) of the line the upper lid closes onto (``mimetic.rig.anatomy.lids.lower_line``)
-    for the lower margin (j, 3 in the eye frame); ``step`` is the median spacing along u (0 for fewer
-    than two points)."""
-    u, v = lower_line(points, span, column)
-    return u, v, _median(np.diff(u)) if len(u) > 1 else 0.0
+    """(u, v, step) of the line the upper lid closes onto (``mimetic.rig.anatomy.lids.lower_line``,
+    compiled: ``kernels.bridged_margin``) for the lower margin (j, 3 in the eye frame). ``step`` is
+    the median spacing along u (0 for fewer than two points)."""
+    order = np.argsort(points[:, 0], kind="stable")
+    u, v = points[order, 0], points[order, 1]
+    step = _median(np.diff(u)) if len(u) > 1 else 0.0
+    if len(u) < 3:
+        return u, v, step
+    # v_i = max(v_i, v_a + (u_i - u_a) (v_b - v_a) / (u_b - u_a)) over a < i < b with u_b - u_a <= column,
+    # or <= span where v_i <= min(v_a, v_b)
+    line = bridged_margin(u, v, span, column)
+    # each end stands as high as the margin within a column of it: a canthus' wall (a stack of rim
+    # vertices at one u) holds the lid's corner at its top, not beside its foot
+    line[0] = max(line[0], v[: np.searchsorted(u, u[0] + column, side="right")].max())
+    line[-1] = max(line[-1], v[np.searchsorted(u, u[-1] - column, side="left") :].max())
+    return u, line, step
 
 
 def _median(x: np.ndarray) -> float:

@@ -21,8 +21,8 @@ import numpy as np
 def bridged_margin(u: np.ndarray, v: np.ndarray, span: float, column: float) -> np.ndarray:
     """``v`` (j,) raised to the highest chord between two points a < i < b with ``u[b] - u[a] <= span``
     that passes over a dip (``v[i]`` no higher than ``v[a]`` and ``v[b]``), or with ``u[b] - u[a] <=
-    column`` whatever the shape (``mimetic.rig.anatomy.lids.lower_line``; ``u`` (j,) sorted). NaN where
-    a chord is NaN, as numpy's max gives."""
+    column`` whatever the shape (``chain._lower_line``; ``u`` (j,) sorted). NaN where a chord is NaN,
+    as numpy's max gives."""
     j = len(u)
     high = np.full(j, -np.inf)
     for a in range(j):

@@ -510,16 +510,21 @@ def lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndarr
     The upper lid's margin is stiff (the tarsal plate): it does not sink into the lower one's dips,
     but follows its rise into a corner (bridged, it would stand off it by the rise); a canthus' wall
     (rim vertices stacked at one u) holds the lid's corner at its top, not beside its foot. The
-    closing weights aim at this line and the engines' contact stops the lid on it, frame after frame
-    (``mimetic.engines.chain``); the chords are ``mimetic.engines.kernels.bridged_margin``'s.
+    closing weights aim at this line and the engines' contact stops the lid on it
+    (``mimetic.engines.chain``, compiled per frame).
     """
-    from mimetic.engines.kernels import bridged_margin  # compiled; the engines import this module
-
     order = np.argsort(points[:, 0], kind="stable")
     u, v = points[order, 0], points[order, 1]
     if len(u) < 3:
         return u, v
-    line = bridged_margin(u, v, span, column)
+    k = np.arange(len(u))
+    between = (k[:, None, None] < k[None, None, :]) & (k[None, None, :] < k[None, :, None])  # (a, b, i)
+    width = u[None, :] - u[:, None]  # (a, b)
+    slope = (v[None, :] - v[:, None]) / np.maximum(width, 1e-300)
+    chord = v[:, None, None] + (u[None, None, :] - u[:, None, None]) * slope[:, :, None]
+    dip = (v[None, None, :] <= v[:, None, None]) & (v[None, None, :] <= v[None, :, None])
+    usable = between & ((width <= column)[:, :, None] | ((width <= span)[:, :, None] & dip))
+    line = np.maximum(v, np.where(usable, chord, -np.inf).max(axis=(0, 1)))
     line[0] = max(line[0], v[: np.searchsorted(u, u[0] + column, side="right")].max())
     line[-1] = max(line[-1], v[np.searchsorted(u, u[-1] - column, side="left") :].max())
     return u, line
