@@ -224,44 +224,19 @@ def front_depth(
     z = np.full((len(y), len(x)), np.nan)
     if not inside.any():
         return DepthMap(x, y, z)
-    used, local = np.unique(faces[inside], return_inverse=True)
-    mesh = trimesh.Trimesh(vertices[used], local.reshape(-1, 3), process=False)
-    top = mesh.vertices[:, 2].max() + step  # the rays start above everything and go down
-    # 1. candidates: the grid points in each triangle's bounding box, widened by a millionth of a step
-    #    (trimesh's broad phase is the same test with an r-tree, and its hits lie within 1e-12 of a
-    #    triangle's barycentric range, so no hit is lost)
-    triangles = mesh.triangles  # (m, 3, 3)
+    triangles = vertices[faces[inside]]  # (m, 3, 3)
+    top = triangles[:, :, 2].max() + step  # the rays start above everything and go down
+    # the grid points in each triangle's bounding box, widened by a millionth of a step (trimesh's
+    # broad phase is the same test with an r-tree, and its hits lie within 1e-12 of a triangle's
+    # barycentric range, so no hit is lost); then trimesh's narrow phase on them, compiled
     first = np.ceil((triangles[:, :, :2].min(axis=1) - [x[0], y[0]]) / step - 1e-6).astype(np.int64)  # (m, 2)
     last = np.floor((triangles[:, :, :2].max(axis=1) - [x[0], y[0]]) / step + 1e-6).astype(np.int64)
     first = np.maximum(first, 0)
     last = np.minimum(last, [len(x) - 1, len(y) - 1])
-    size = np.maximum(last - first + 1, 0)  # (m, 2) columns and rows in each box
-    count = size[:, 0] * size[:, 1]
-    tri = np.repeat(np.arange(len(triangles)), count)  # (c,) candidate pairs
-    offset = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
-    column = first[tri, 0] + offset % size[tri, 0]
-    row = first[tri, 1] + offset // size[tri, 0]
-    # 2. the narrow phase trimesh's ray query runs (``ray_triangle_id``), on those pairs: the plane hit,
-    #    then its barycentric coordinates, so every hit and its depth are exactly trimesh's
-    origins = np.column_stack([x[column], y[row], np.full(len(tri), top)])
-    location, valid = trimesh.intersections.planes_lines(
-        plane_origins=triangles[tri, 0],
-        plane_normals=mesh.face_normals[tri],
-        line_origins=origins,
-        line_directions=np.tile([0.0, 0.0, -1.0], (len(tri), 1)),
-    )
-    barycentric = trimesh.triangles.points_to_barycentric(triangles[tri[valid]], location)
-    tolerance = trimesh.tol.zero
-    hit = ((barycentric > -tolerance) & (barycentric < 1 + tolerance)).all(axis=1)
-    ray = (row * len(x) + column)[valid][hit]
-    depth = location[hit, 2]
-    # 3. the first hit along each ray: the smallest distance from its origin, as trimesh picks it
-    order = np.lexsort((top - depth, ray))
-    ray, depth = ray[order], depth[order]
-    firsts = np.r_[True, ray[1:] != ray[:-1]]
-    flat = z.ravel()
-    flat[ray[firsts]] = depth[firsts]
-    return DepthMap(x, y, flat.reshape(z.shape))
+    from mimetic.mesh.kernels import first_hits  # numba loads on first use (~0.3 s), not on import
+
+    z = first_hits(triangles, first, last, x, y, float(top), trimesh.tol.zero, trimesh.util.TOL_ZERO)
+    return DepthMap(x, y, z)
 
 
 def _pieces(z: np.ndarray, jump: float) -> np.ndarray:
