@@ -33,3 +33,66 @@ def csr_matvec3(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, x: np
         y[1, i] = s1
         y[2, i] = s2
     return y
+
+
+@numba.njit(cache=True, error_model="numpy")
+def cg3(
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    data: np.ndarray,
+    inverse_diagonal: np.ndarray,
+    b: np.ndarray,
+    x: np.ndarray,
+    atol: np.ndarray,
+    maxiter: int,
+) -> bool:
+    """Jacobi-preconditioned conjugate gradients for ``A x[d] = b[d]``, d = 0, 1, 2, side by side:
+    ``A`` (n, n) SPD in CSR (as ``csr_matvec3`` takes it), ``inverse_diagonal`` (n,), ``b`` (3, n),
+    ``x`` (3, n) the start, overwritten with the solution; a coordinate stops once its residual's norm
+    is below ``atol[d]`` (0: ``x[d] = b[d]``, as scipy returns b = 0). Each coordinate takes the steps
+    of ``scipy.sparse.linalg.cg`` with ``M = diags(inverse_diagonal)`` with the same arithmetic (BLAS
+    dot products, element-wise updates), so the same bits. False when ``maxiter`` steps did not do."""
+    n = len(inverse_diagonal)
+    ax = csr_matvec3(indptr, indices, data, x)
+    r = np.zeros((3, n))  # the residuals (0 in a column that is done from the start)
+    live = np.zeros(3, dtype=np.bool_)
+    for d in range(3):
+        if atol[d] == 0.0:
+            x[d] = b[d]
+        else:
+            if np.any(x[d] != 0.0):
+                r[d] = b[d] - ax[d]
+            else:
+                r[d] = b[d]
+            live[d] = True
+    p = np.zeros((3, n))
+    z = np.empty((3, n))
+    rho_prev = np.ones(3)
+    for iteration in range(maxiter):
+        for d in range(3):
+            if live[d] and np.sqrt(np.dot(r[d], r[d])) < atol[d]:
+                live[d] = False
+        if not live.any():
+            return True
+        for d in range(3):
+            for i in range(n):
+                z[d, i] = inverse_diagonal[i] * r[d, i]
+        for d in range(3):
+            if live[d]:
+                rho = np.dot(r[d], z[d])
+                if iteration > 0:
+                    scale = rho / rho_prev[d]
+                    for i in range(n):
+                        p[d, i] *= scale
+                        p[d, i] += z[d, i]
+                else:
+                    p[d] = z[d]
+                rho_prev[d] = rho
+        q = csr_matvec3(indptr, indices, data, p)
+        for d in range(3):
+            if live[d]:
+                alpha = rho_prev[d] / np.dot(p[d], q[d])
+                for i in range(n):
+                    x[d, i] += alpha * p[d, i]
+                    r[d, i] -= alpha * q[d, i]
+    return False

@@ -250,41 +250,12 @@ def _solve_spd(system: sp.csr_matrix, rhs: np.ndarray, guess: np.ndarray) -> np.
     stops where scipy's would.
     """
     assert rhs.shape[1] == 3, "the registration solves for three coordinates"
-    kernels = _kernels()
     indptr, indices = system.indptr.astype(np.uint64), system.indices.astype(np.uint64)
-    inverse_diagonal = 1.0 / system.diagonal()
     b = np.ascontiguousarray(rhs.T)  # (3, n): each coordinate contiguous, as scipy's vectors are
     x = np.array(guess.T, order="C")
-    atol = [CG_RTOL * np.linalg.norm(b[d]) for d in range(3)]
-    ax = kernels.csr_matvec3(indptr, indices, system.data, x)
-    r = np.zeros_like(b)  # the residuals (0 in a column that is done from the start)
-    live = []
-    for d in range(3):
-        if atol[d] == 0:  # b = 0: scipy returns b
-            x[d] = b[d]
-        else:
-            r[d] = b[d] - ax[d] if x[d].any() else b[d]
-            live.append(d)
-    p = np.zeros_like(b)
-    rho_prev = np.ones(3)
-    for iteration in range(CG_MAXITER):
-        live = [d for d in live if not np.linalg.norm(r[d]) < atol[d]]
-        if not live:
-            return np.ascontiguousarray(x.T)
-        z = inverse_diagonal * r
-        for d in live:
-            rho = np.dot(r[d], z[d])
-            if iteration > 0:
-                p[d] *= rho / rho_prev[d]
-                p[d] += z[d]
-            else:
-                p[d] = z[d]
-            rho_prev[d] = rho
-        q = kernels.csr_matvec3(indptr, indices, system.data, p)
-        for d in live:
-            alpha = rho_prev[d] / np.dot(p[d], q[d])
-            x[d] += alpha * p[d]
-            r[d] -= alpha * q[d]
+    atol = np.array([CG_RTOL * np.linalg.norm(b[d]) for d in range(3)])
+    if _kernels().cg3(indptr, indices, system.data, 1.0 / system.diagonal(), b, x, atol, CG_MAXITER):
+        return np.ascontiguousarray(x.T)
     lu = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
     return lu.solve(rhs)
 
