@@ -290,26 +290,41 @@ def eyeball(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) -> tup
     corners = np.asarray(corners, dtype=np.float64)
     width = float(np.linalg.norm(corners[1] - corners[0]))
     middle = corners.mean(axis=0)
+    low, high = EYEBALL_RADIUS_REL
+    best, best_area = None, 0.0
+    for area, mean, centre, radius, off in _spheres(vertices, faces):
+        if area <= best_area or np.linalg.norm(mean[:2] - middle[:2]) > OFF_REL * width:
+            continue
+        if low * width < radius < high * width and off < SPHERE_FIT * radius:
+            best, best_area = (centre, radius), area
+    return best
+
+
+@per_arrays(2)
+def _spheres(
+    vertices: np.ndarray, faces: np.ndarray
+) -> tuple[tuple[float, np.ndarray, np.ndarray, float, float], ...]:
+    """Per connected piece other than the largest (the skin) with at least 20 vertices, in piece order:
+    its area, the mean (3,) of its vertices, their least-squares sphere's centre (3,) and radius, and
+    the RMS of their distances off that sphere (remembered per mesh: ``eyeball`` asks once per eye)."""
     _, labels = connected_components(faces, len(vertices))
     face_label = labels[faces[:, 0]]
     area = np.bincount(face_label, weights=np.linalg.norm(face_normals(vertices, faces, unit=False), axis=1))
-    best, best_area = None, 0.0
-    for piece in np.unique(face_label):
-        ids = np.unique(faces[face_label == piece])
-        if piece == area.argmax() or len(ids) < 20 or area[piece] <= best_area:
+    order = np.argsort(face_label, kind="stable")
+    bounds = np.searchsorted(face_label[order], np.arange(len(area) + 1))
+    out = []
+    for piece in np.flatnonzero(np.diff(bounds)):
+        ids = np.unique(faces[order[bounds[piece] : bounds[piece + 1]]])
+        if piece == area.argmax() or len(ids) < 20:
             continue
         points = vertices[ids]
-        if np.linalg.norm(points.mean(axis=0)[:2] - middle[:2]) > OFF_REL * width:
-            continue
         a = np.column_stack([2.0 * points, np.ones(len(points))])
         solution = np.linalg.lstsq(a, np.sum(points**2, axis=1), rcond=None)[0]
         centre = solution[:3]
         radius = float(np.sqrt(max(solution[3] + centre @ centre, 0.0)))
-        off = np.sqrt(np.mean((np.linalg.norm(points - centre, axis=1) - radius) ** 2))
-        low, high = EYEBALL_RADIUS_REL
-        if low * width < radius < high * width and off < SPHERE_FIT * radius:
-            best, best_area = (centre, radius), area[piece]
-    return best
+        off = float(np.sqrt(np.mean((np.linalg.norm(points - centre, axis=1) - radius) ** 2)))
+        out.append((float(area[piece]), points.mean(axis=0), centre, radius, off))
+    return tuple(out)
 
 
 def eye_opening(
