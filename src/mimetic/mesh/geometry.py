@@ -379,15 +379,9 @@ def closest_on_polyline(
     """Closest points of ``points`` (m, 3) on ``polyline`` (k, 3), k >= 2.
 
     Returns the segment index (m,) int, the parameter t (m,) in [0, 1] along that segment and
-    the distance (m,) float64.
+    the distance (m,) float64; the first such segment on a tie.
     """
-    a, b = polyline[:-1], polyline[1:]  # (s, 3)
-    ab = b - a
-    t = np.einsum("msd,sd->ms", points[:, None] - a[None], ab) / np.maximum(
-        np.einsum("sd,sd->s", ab, ab), 1e-30
-    )
-    t = np.clip(t, 0.0, 1.0)  # (m, s)
-    dist = np.linalg.norm(points[:, None] - (a[None] + t[..., None] * ab[None]), axis=2)  # (m, s)
-    seg = np.argmin(dist, axis=1)
-    rows = np.arange(len(points))
-    return seg, t[rows, seg], dist[rows, seg]
+    from mimetic.mesh.kernels import closest_on_segments  # numba loads on first use, not on import
+
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    return closest_on_segments(points, np.ascontiguousarray(polyline, dtype=np.float64))

@@ -159,3 +159,32 @@ def first_hits(
                     nearest[row, column] = top - p2
                     depth[row, column] = p2
     return depth
+
+
+@numba.njit(cache=True, error_model="numpy")
+def closest_on_segments(
+    points: np.ndarray, polyline: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each of ``points`` (m, 3), the segment (m,) of ``polyline`` (k, 3) nearest to it, the
+    parameter (m,) in [0, 1] along it and the distance (m,), as numpy computed them (the formula in
+    ``tests/mesh/test_kernels.py``: einsum's sums (x + z) + y, the norm's (x + y) + z, the first
+    nearest segment on a tie), so the same bits, without its (m, k − 1, 3) arrays."""
+    m, s = len(points), len(polyline) - 1
+    seg = np.zeros(m, dtype=np.int64)
+    t_best = np.zeros(m)
+    d_best = np.full(m, np.inf)
+    for j in range(s):
+        a0, a1, a2 = polyline[j, 0], polyline[j, 1], polyline[j, 2]
+        e0, e1, e2 = polyline[j + 1, 0] - a0, polyline[j + 1, 1] - a1, polyline[j + 1, 2] - a2
+        length_sq = max((e0 * e0 + e2 * e2) + e1 * e1, 1e-30)  # einsum's order
+        for i in range(m):
+            w0, w1, w2 = points[i, 0] - a0, points[i, 1] - a1, points[i, 2] - a2
+            t = ((w0 * e0 + w2 * e2) + w1 * e1) / length_sq
+            t = min(max(t, 0.0), 1.0)
+            r0 = points[i, 0] - (a0 + t * e0)
+            r1 = points[i, 1] - (a1 + t * e1)
+            r2 = points[i, 2] - (a2 + t * e2)
+            d = np.sqrt((r0 * r0 + r1 * r1) + r2 * r2)
+            if j == 0 or d < d_best[i]:
+                seg[i], t_best[i], d_best[i] = j, t, d
+    return seg, t_best, d_best
