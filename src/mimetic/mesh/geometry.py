@@ -7,7 +7,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
-from scipy.sparse.linalg import spsolve
+from scipy.sparse.linalg import splu
 
 from mimetic.mesh.memo import per_arrays
 
@@ -195,13 +195,22 @@ def smooth_field(
     inverse_sq = 1.0 / np.maximum(edge_sq, 1e-300)
     rows = np.concatenate([edges[:, 0], edges[:, 1]])
     cols = np.concatenate([edges[:, 1], edges[:, 0]])
-    weight = sparse.csr_matrix((np.tile(inverse_sq, 2), (rows, cols)), shape=(n, n))
-    degree = np.maximum(np.diff(weight.indptr), 1)
-    weight = sparse.diags(4.0 * length**2 / degree) @ weight  # length² × the off-diagonal of L
-    system = sparse.diags(1.0 + np.asarray(weight.sum(axis=1)).ravel()) - weight
+    weight = sparse.csr_matrix((np.tile(inverse_sq, 2), (rows, cols)), shape=(n, n))  # symmetric
+    # row i of the system, divided by its scale 4 length² / degree_i, is symmetric: a Cholesky-like
+    # factorisation (symmetric ordering, diagonal pivots) solves it in two thirds of a general LU's time
+    scale = 4.0 * length**2 / np.maximum(np.diff(weight.indptr), 1)
+    system = sparse.diags(1.0 / scale + np.asarray(weight.sum(axis=1)).ravel()) - weight
     fixed = np.flatnonzero(~free)
-    rhs = values[ids] + (weight[ids][:, fixed] @ values[fixed] if len(fixed) else 0.0)
-    out[ids] = spsolve(system[ids][:, ids].tocsc(), rhs)
+    rhs = values[ids] / (scale[ids] if values.ndim == 1 else scale[ids, None])
+    if len(fixed):
+        rhs = rhs + weight[ids][:, fixed] @ values[fixed]
+    factor = splu(
+        system[ids][:, ids].tocsc(),
+        permc_spec="MMD_AT_PLUS_A",
+        diag_pivot_thresh=0.0,
+        options={"SymmetricMode": True},
+    )
+    out[ids] = factor.solve(rhs)
     return out
 
 
