@@ -146,17 +146,19 @@ def find_creases(
         gains = {c: g for c, g in gains.items() if c in channel_names}
         if not gains:
             return
-        dist, t = _segment_distance(vertices[skin], a, b)
+        reach = width * s * np.sqrt(-np.log(MIN_WEIGHT))  # the Gaussian is below MIN_WEIGHT beyond it
+        near = skin[np.all(np.abs(vertices[skin] - 0.5 * (a + b)) <= 0.5 * np.abs(b - a) + reach, axis=1)]
+        dist, t = _segment_distance(vertices[near], a, b)
         w = (
             np.exp(-((dist / (width * s)) ** 2))
             * np.sin(np.pi * (TAPER_MARGIN + (1 - 2 * TAPER_MARGIN) * t)) ** 0.5
         )
         if clear is not None:  # (1 − (1 − d/r)²)² within r of the nearest of the points
-            d, _ = cKDTree(clear).query(vertices[skin])
+            d, _ = cKDTree(clear).query(vertices[near])
             x = np.clip(d / (NASOLABIAL_CLEAR_REL * s), 0.0, 1.0)
             w = w * (1.0 - (1.0 - x) ** 2) ** 2
         keep = w > MIN_WEIGHT
-        ids = skin[keep]
+        ids = near[keep]
         out.append(Crease(name, gains, ids, -(depth * w[keep])[:, None] * normals[ids]))
 
     for side, sx in (("L", 1.0), ("R", -1.0)):
