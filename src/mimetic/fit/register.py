@@ -322,7 +322,7 @@ def register(
             weight = np.zeros(n)
             goal = np.zeros((n, 3))
             # reference → target: slide onto the tangent plane of the closest target sample
-            dist, nearest = tree.query(x[candidates], distance_upper_bound=limit, workers=-1)
+            dist, nearest = tree.query(x[candidates], distance_upper_bound=limit)
             ok = np.isfinite(dist)
             ids, near = candidates[ok], nearest[ok]
             ok = np.einsum("kd,kd->k", normals[ids], target.normals[near]) >= NORMAL_COS

@@ -74,7 +74,7 @@ def closest_points(
     q = np.asarray(queries, dtype=np.float64)
     k = min(candidates, len(f))
     tri = v[f]  # (m, 3, 3)
-    _, near = cKDTree(tri.mean(axis=1), balanced_tree=False).query(q, k=k, workers=-1)
+    _, near = cKDTree(tri.mean(axis=1), balanced_tree=False).query(q, k=k)
     near = np.ascontiguousarray(near.reshape(len(q), k), dtype=np.int64)  # (q, k)
     # trimesh.triangles.closest_point on each (query, candidate) pair, compiled: (q, k, 3), (q, k)
     pts, dist = _kernels().closest_on_triangles(v, f, near, q, trimesh.tol.zero)
