@@ -219,6 +219,13 @@ def eye_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
     return x[:3], float(np.sqrt(max(x[3] + x[:3] @ x[:3], 0.0)))
 
 
+def _inner_edges(edges: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
+    """The ``edges`` (e, 2) both of whose ends are among ``ids`` (of ``n`` vertices)."""
+    among = np.zeros(n, dtype=bool)
+    among[ids] = True
+    return edges[among[edges].all(axis=1)]
+
+
 def _envelope(ids: np.ndarray, edges: np.ndarray, uvw: np.ndarray, *, lowest: bool) -> np.ndarray:
     """The vertices of ``ids`` on the lower (``lowest``) or upper envelope, seen along the gaze, of the
     polylines their mesh edges draw in the eye's (u, v) plane, ordered by ``u``.
@@ -228,7 +235,7 @@ def _envelope(ids: np.ndarray, edges: np.ndarray, uvw: np.ndarray, *, lowest: bo
     under it; a second row of the margin lies above the first.
     """
     sign = 1.0 if lowest else -1.0
-    inner = edges[np.isin(edges, ids).all(axis=1)]
+    inner = _inner_edges(edges, ids, len(uvw))
     u, v = uvw[:, 0], sign * uvw[:, 1]
     a, b = inner[:, 0], inner[:, 1]
     lo, hi = np.minimum(u[a], u[b]), np.maximum(u[a], u[b])
@@ -248,7 +255,7 @@ def _chain(
     corner, a fold beside a corner does not."""
     if len(envelope) == 0:
         return envelope
-    inner = edges[np.isin(edges, ids).all(axis=1)]
+    inner = _inner_edges(edges, ids, len(uvw))
     index = np.full(int(max(ids.max(), inner.max(initial=0))) + 1, -1)
     index[ids] = np.arange(len(ids))
     graph = sp.coo_matrix(
