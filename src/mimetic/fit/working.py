@@ -8,8 +8,9 @@ vertex count: 620 s and 7.4 GiB at 1.68M vertices). It rigs a *working copy* ins
    is decimated on its own (``mesh.decimate``) to its share of ``WORKING_VERTICES``; a piece under
    ``KEEP_WHOLE`` vertices is kept as it is. Every one of the user's vertices is then tied to the
    closest triangle of *its own piece's* copy facing its way (``mesh.decimate.embed``), so an
-   eyelid never takes the eyeball's data however close they lie, nor the upper lip the lower's
-   where they touch.
+   eyelid never takes the eyeball's data however close they lie, and of its own sheet (within
+   ``mesh.decimate.SHEET_RINGS`` copy edges of the vertex it was collapsed into), so the
+   upper lip never takes the lower's where they touch and their copies cross.
 2. The existing pipeline rigs the copy (landmarks from its renders, fit, transfer).
 3. ``carry_rig``: the rig on the user's vertices, order, units and faces: skin weights are
    interpolated through each vertex's embedding (then the 4 largest kept and renormalised) and
