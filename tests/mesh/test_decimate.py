@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from mimetic.mesh.decimate import decimate, embed
+from mimetic.mesh.decimate import decimate, decimate_mapped, embed
 
 
 @pytest.fixture(scope="module")
@@ -93,3 +93,57 @@ def test_embed_with_normals_keeps_points_on_their_own_sheet():
     # a point no triangle faces (the upper sheet alone, seen from below) takes the closest of all
     away = embed(points[:3], upper, up, normals=-normals[:3])
     assert np.array_equal(away.triangles, embed(points[:3], upper, up).triangles)
+
+
+def test_decimate_mapped_sends_each_vertex_to_its_own_piece(sphere):
+    vertices, faces = sphere
+    far = vertices * 0.5 + [30.0, 0.0, 0.0]
+    both_v = np.concatenate([vertices, far])
+    both_f = np.concatenate([faces, faces + len(vertices)])
+    v, f, source = decimate_mapped(both_v, both_f, 2_000)
+    assert source.shape == (len(both_v),) and source.dtype == np.int64
+    np.testing.assert_array_equal(v, decimate(both_v, both_f, 2_000)[0])
+    assert source.min() >= 0 and source.max() < len(v)
+    # collapses run along edges: each sphere's vertices land on that sphere's copy, nearby
+    np.testing.assert_array_equal(v[source, 0] > 15.0, both_v[:, 0] > 15.0)
+    edge = np.median(np.linalg.norm(v[f[:, 0]] - v[f[:, 1]], axis=1))
+    assert np.median(np.linalg.norm(v[source] - both_v, axis=1)) < edge
+
+
+def test_embed_around_keeps_a_point_on_its_own_sheet_where_the_copies_cross():
+    """A decimated lip: the upper lip's underside (faces -y) copied as two large triangles (their
+    centroids far off) a little too high, the lower lip's top (faces +y) finely and just below the
+    points. The points' nearest triangles by centroid are all the lower lip's and face away, so the
+    closest of all (the lower lip's) took them; with the vertex their sheet collapsed into they keep
+    to the upper lip."""
+    grid = np.stack(np.meshgrid(np.linspace(0, 1, 11), np.linspace(0, 1, 11)), -1).reshape(-1, 2)
+    quads = [
+        (i * 11 + j, i * 11 + j + 1, (i + 1) * 11 + j + 1, (i + 1) * 11 + j)
+        for i in range(10)
+        for j in range(10)
+    ]
+    fine = np.array([(a, b, c) for a, b, c, d in quads] + [(a, c, d) for a, b, c, d in quads])
+    lower = np.column_stack([grid[:, 0], np.full(121, -0.01), grid[:, 1]])  # x, y, z
+    if np.cross(*(lower[fine[0, 1:]] - lower[fine[0, 0]]))[1] < 0:
+        fine = fine[:, ::-1]  # the lower lip's top faces +y
+    upper = np.array([[-5.0, 0.03, -5.0], [6.0, 0.03, -5.0], [6.0, 0.03, 6.0], [-5.0, 0.03, 6.0]])
+    coarse = np.array([[0, 1, 2], [0, 2, 3]]) + 121
+    if np.cross(*(upper[coarse[0, 1:] - 121] - upper[coarse[0, 0] - 121]))[1] > 0:
+        coarse = coarse[:, ::-1]  # the upper lip's underside faces -y
+    vertices = np.concatenate([lower, upper])
+    faces = np.concatenate([fine, coarse])
+    rng = np.random.default_rng(1)
+    points = np.column_stack([rng.uniform(0.3, 0.7, 50), np.zeros(50), rng.uniform(0.3, 0.7, 50)])
+    normals = np.tile([0.0, -1.0, 0.0], (50, 1))
+    around = np.full(50, 121)  # a corner of the upper lip's copy
+    before = points.copy()
+    old = embed(points, vertices, faces, normals=normals, candidates=6)
+    assert np.all(old.triangles < 121)  # the lower lip's: what strung the inner lips at 1.68M
+    kept = embed(points, vertices, faces, normals=normals, candidates=6, around=around)
+    assert kept.triangles.shape == (50, 3) and kept.bary.dtype == np.float64
+    assert np.all(kept.triangles >= 121)
+    np.testing.assert_allclose(kept.place(vertices), points, atol=1e-9)
+    np.testing.assert_array_equal(points, before)
+    # a point with no sheet vertex (-1) keeps the first answer
+    lone = embed(points, vertices, faces, normals=normals, candidates=6, around=np.full(50, -1))
+    np.testing.assert_array_equal(lone.triangles, old.triangles)

@@ -16,6 +16,7 @@ from mimetic.mesh.geometry import (
     edges_with_counts,
     smooth_field,
     vertex_adjacency,
+    vertex_areas,
 )
 
 FIN = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])  # three triangles on edge (0, 1)
@@ -193,3 +194,27 @@ def test_smooth_field_keeps_constants_and_fixed_vertices_and_the_input():
     np.testing.assert_array_equal(out[~free], values[~free])
     assert out.shape == values.shape and not np.allclose(out[free, 1], values[free, 1])
     np.testing.assert_array_equal(smooth_field(values, vertices, faces, 0.0), values)
+
+
+def test_vertex_areas_average_like_the_surface_however_it_is_sampled():
+    """Shares sum to the area, and weighting by them gives the area centroid: a hemisphere with its
+    top half subdivided twice has the same weighted mean height, while its vertex mean rises."""
+    sphere = trimesh.creation.icosphere(2)
+    keep = sphere.triangles_center[:, 1] > -0.1
+    vertices, faces = sphere.vertices, sphere.faces[keep]
+    before = vertices.copy()
+    shares = vertex_areas(vertices, faces)
+    assert shares.shape == (len(vertices),) and shares.dtype == np.float64
+    np.testing.assert_allclose(shares.sum(), trimesh.Trimesh(vertices, faces, process=False).area, rtol=1e-12)
+    assert shares[np.setdiff1d(np.arange(len(vertices)), faces)].max(initial=0.0) == 0.0  # unused
+    top = np.flatnonzero(vertices[faces, 1].mean(axis=1) > 0.5)
+    fine_v, fine_f = vertices, faces
+    for _ in range(2):
+        fine_v, fine_f = trimesh.remesh.subdivide(fine_v, fine_f, face_index=top)
+        top = np.arange(len(fine_f) - 4 * len(top), len(fine_f))
+    used, fine_used = np.unique(faces), np.unique(fine_f)
+    centroid = np.average(vertices[:, 1], weights=shares)
+    fine = np.average(fine_v[:, 1], weights=vertex_areas(fine_v, fine_f))
+    assert abs(fine - centroid) < 1e-12
+    assert fine_v[fine_used, 1].mean() > vertices[used, 1].mean() + 0.1
+    np.testing.assert_array_equal(vertices, before)

@@ -8,8 +8,9 @@ vertex count: 620 s and 7.4 GiB at 1.68M vertices). It rigs a *working copy* ins
    is decimated on its own (``mesh.decimate``) to its share of ``WORKING_VERTICES``; a piece under
    ``KEEP_WHOLE`` vertices is kept as it is. Every one of the user's vertices is then tied to the
    closest triangle of *its own piece's* copy facing its way (``mesh.decimate.embed``), so an
-   eyelid never takes the eyeball's data however close they lie, nor the upper lip the lower's
-   where they touch.
+   eyelid never takes the eyeball's data however close they lie, and of its own sheet (within
+   ``mesh.decimate.SHEET_RINGS`` copy edges of the vertex it was collapsed into), so the
+   upper lip never takes the lower's where they touch and their copies cross.
 2. The existing pipeline rigs the copy (landmarks from its renders, fit, transfer).
 3. ``carry_rig``: the rig on the user's vertices, order, units and faces: skin weights are
    interpolated through each vertex's embedding (then the 4 largest kept and renormalised) and
@@ -40,7 +41,7 @@ from scipy.spatial import cKDTree
 from mimetic.errors import MeshError
 from mimetic.fit.transfer import MAX_INFLUENCES, MEMBERSHIP, close_lids, top_influences
 from mimetic.mesh.closest import closest_points
-from mimetic.mesh.decimate import Embedding, decimate, embed
+from mimetic.mesh.decimate import Embedding, decimate_mapped, embed
 from mimetic.mesh.geometry import connected_components, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.rig.anatomy import (
@@ -133,12 +134,21 @@ def working_copy(mesh: Mesh, welded: Mesh, index: np.ndarray, target: int) -> Wo
         v, f = welded.vertices[used], local.reshape(-1, 3)
         # the user's vertices' own normals (k, 3), from the piece's welded surface
         normals = vertex_normals(v, f)[np.searchsorted(used, index[users])]
+        source = np.arange(len(used))  # each welded vertex's copy vertex, on its own sheet
         if len(used) >= KEEP_WHOLE:
-            v, f = _decimated(v, f, max(KEEP_WHOLE, round(len(used) * share)))
+            v, f, source = _decimated(v, f, max(KEEP_WHOLE, round(len(used) * share)))
+        around = source[np.searchsorted(used, index[users])]  # (k,)
         tie = f[_areas(v, f) > SLIVER_REL * np.median(_areas(v, f))]  # slivers have no barycentrics
         for rows in np.array_split(np.arange(len(users)), max(1, -(-len(users) // CHUNK))):
             chunk = users[rows]
-            tied = embed(mesh.vertices[chunk], v, tie, candidates=EMBED_CANDIDATES, normals=normals[rows])
+            tied = embed(
+                mesh.vertices[chunk],
+                v,
+                tie,
+                candidates=EMBED_CANDIDATES,
+                normals=normals[rows],
+                around=around[rows],
+            )
             triangles[chunk], bary[chunk], offset[chunk] = tied.triangles + start, tied.bary, tied.offset
         vertices.append(v)
         faces.append(f + start)
@@ -156,26 +166,35 @@ def working_copy(mesh: Mesh, welded: Mesh, index: np.ndarray, target: int) -> Wo
     return WorkingCopy(copy, Embedding(triangles, bary, offset, len(copy_v)))
 
 
-def _decimated(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
-    """``decimate``, then its needles collapsed: quadric collapses over flat patches (a subdivided
-    mesh's) leave about 1 % of triangles with two corners a thousand-billionth of an edge apart,
-    which have no normal and upset the fit and the lids. Corners closer than ``NEEDLE_REL`` × the
-    median edge are merged, the faces left without area dropped, unused vertices removed."""
-    v, f = decimate(vertices, faces, target)
+def _decimated(
+    vertices: np.ndarray, faces: np.ndarray, target: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``decimate_mapped``, then its needles collapsed: quadric collapses over flat patches (a
+    subdivided mesh's) leave about 1 % of triangles with two corners a thousand-billionth of an edge
+    apart, which have no normal and upset the fit and the lids. Corners closer than ``NEEDLE_REL`` ×
+    the median edge are merged, the faces left without area dropped, unused vertices removed.
+    Returns the copy's vertices (k, 3), faces (l, 3) and each input vertex's copy vertex (n,)
+    (-1: none)."""
+    v, f, source = decimate_mapped(vertices, faces, target)
+    lowest = np.arange(len(v))
     edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     length = np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1)
     short = edges[length <= NEEDLE_REL * np.median(length)]
     if len(short):
         graph = sp.coo_matrix((np.ones(len(short)), (short[:, 0], short[:, 1])), shape=(len(v), len(v)))
         _, label = graph_components(graph, directed=False)
-        lowest = np.full(label.max() + 1, len(v))
-        np.minimum.at(lowest, label, np.arange(len(v)))
-        f = lowest[label][f]
+        first = np.full(label.max() + 1, len(v))
+        np.minimum.at(first, label, np.arange(len(v)))
+        lowest = first[label]
+        f = lowest[f]
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
     _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)  # a collapse can leave twins
     f = f[np.sort(first)]
     used, local = np.unique(f, return_inverse=True)
-    return np.ascontiguousarray(v[used]), local.reshape(-1, 3).astype(np.int64)
+    renumber = np.full(len(v) + 1, -1, dtype=np.int64)  # the last entry: no copy vertex
+    renumber[used] = np.arange(len(used))
+    source = renumber[np.where(source >= 0, lowest[source], len(v))]
+    return np.ascontiguousarray(v[used]), local.reshape(-1, 3).astype(np.int64), source
 
 
 def _areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

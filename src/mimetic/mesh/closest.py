@@ -63,19 +63,25 @@ def closest_points(
     query_normals: np.ndarray | None = None,
     min_cos: float = 0.0,
     candidates: int = CANDIDATES,
+    among: np.ndarray | None = None,
 ) -> ClosestPoints:
     """The closest point on triangles ``faces`` (m, 3) of ``vertices`` (n, 3) to each query (q, 3).
 
     With ``query_normals`` (q, 3) (unit), triangles whose unit normal makes a cosine below
-    ``min_cos`` with the query's normal are skipped.
+    ``min_cos`` with the query's normal are skipped. ``among`` (q, k) int64, rows of ``faces``:
+    each query's candidate triangles (repeats allowed), instead of its ``candidates`` nearest by
+    centroid.
     """
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     q = np.asarray(queries, dtype=np.float64)
-    k = min(candidates, len(f))
     tri = v[f]  # (m, 3, 3)
-    _, near = cKDTree(tri.mean(axis=1), balanced_tree=False).query(q, k=k)
-    near = np.ascontiguousarray(near.reshape(len(q), k), dtype=np.int64)  # (q, k)
+    if among is None:
+        k = min(candidates, len(f))
+        _, near = cKDTree(tri.mean(axis=1), balanced_tree=False).query(q, k=k)
+        near = np.ascontiguousarray(near.reshape(len(q), k), dtype=np.int64)  # (q, k)
+    else:
+        near = np.ascontiguousarray(among, dtype=np.int64)
     # trimesh.triangles.closest_point on each (query, candidate) pair, compiled: (q, k, 3), (q, k)
     pts, dist = _kernels().closest_on_triangles(v, f, near, q, trimesh.tol.zero)
     dist = np.where(np.isfinite(dist), dist, np.inf)

@@ -17,7 +17,14 @@ import fast_simplification
 import numpy as np
 from scipy import sparse
 
-from mimetic.mesh.closest import CANDIDATES, closest_points
+from mimetic.mesh.closest import CANDIDATES, ClosestPoints, closest_points
+
+SHEET_RINGS = 2
+"""How many edges of the proxy a point's triangle may lie from the vertex its own sheet collapsed into
+(``embed``'s ``around``)."""
+SHEET_SLACK_REL = 0.5
+"""... and how much further (× the proxy's median edge) its own sheet's closest triangle may lie
+than the closest of all, for the point to take it (``embed``)."""
 
 
 def decimate(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
@@ -27,19 +34,60 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.n
     their order are new. A surface already at or under ``target`` vertices comes back as it is.
     Returns ``(vertices (k, 3) float64, faces (l, 3) int64)``.
     """
-    vertices = np.asarray(vertices, dtype=np.float64)
-    faces = np.asarray(faces, dtype=np.int64)
+    vertices, faces, _, reduction = _prepared(vertices, faces, target)
+    if reduction is None:
+        return vertices, faces
+    out_v, out_f = fast_simplification.simplify(vertices, faces, target_reduction=reduction)
+    return np.asarray(out_v, dtype=np.float64), np.asarray(out_f, dtype=np.int64)
+
+
+def decimate_mapped(
+    vertices: np.ndarray, faces: np.ndarray, target: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``decimate``, and where each vertex went: ``(vertices (k, 3), faces (l, 3), source (n,) int64)``,
+    ``source[i]`` the copy vertex vertex ``i`` was collapsed into (-1 for vertices no face uses).
+
+    Collapses run along edges, so ``source`` follows the surface: a vertex of one lip lands on that
+    lip's copy even where the two lips touch and their copies cross.
+    """
+    vertices, faces, used, reduction = _prepared(vertices, faces, target)
+    source = np.full(len(vertices), -1, dtype=np.int64)
+    if reduction is None:
+        source[used] = used
+        return vertices, faces, source
+    out_v, out_f, collapses = fast_simplification.simplify(
+        vertices, faces, target_reduction=reduction, return_collapses=True
+    )
+    # collapses[j] = (kept, gone): each vertex goes where its chain of collapses ends; the copy's
+    # vertices are the ends that faces still use, in their input order (as the library's
+    # replay_simplification finds them, without its copies of the whole mesh: 0.5 GiB at 1.68M)
+    parent = np.arange(len(vertices))
+    parent[collapses[:, 1]] = collapses[:, 0]
+    while not np.array_equal(end := parent[parent], parent):
+        parent = end
+    left = parent[faces]  # (m, 3)
+    left = left[(left[:, 0] != left[:, 1]) & (left[:, 1] != left[:, 2]) & (left[:, 0] != left[:, 2])]
+    kept = np.zeros(len(vertices), dtype=bool)
+    kept[left.ravel()] = True
+    assert kept.sum() == len(out_v), "the collapses do not give the decimation's vertices"
+    rank = np.cumsum(kept) - 1
+    source[used] = np.where(kept[parent[used]], rank[parent[used]], -1)
+    return np.asarray(out_v, dtype=np.float64), np.asarray(out_f, dtype=np.int64), source
+
+
+def _prepared(
+    vertices: np.ndarray, faces: np.ndarray, target: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float | None]:
+    """The arrays as ``fast_simplification`` takes them (writeable, C-ordered: a Mesh's are
+    read-only), the vertices the faces use, and the reduction that leaves about ``target`` of them
+    (None: there are no more than that)."""
     if target < 4:
         raise ValueError(f"a proxy needs at least 4 vertices, not {target}")
+    vertices = np.require(np.asarray(vertices, dtype=np.float64), requirements=["C", "W"])
+    faces = np.require(np.asarray(faces, dtype=np.int64), requirements=["C", "W"])
     used = np.unique(faces)
-    if len(used) <= target:
-        return vertices, faces
     # a closed surface has about twice as many triangles as vertices; an open one a little fewer
-    reduction = 1.0 - target / len(used)
-    # its binding takes only writeable C-ordered arrays (a Mesh's arrays are read-only)
-    writeable = [np.require(a, requirements=["C", "W"]) for a in (vertices, faces)]
-    out_v, out_f = fast_simplification.simplify(*writeable, target_reduction=reduction)
-    return np.asarray(out_v, dtype=np.float64), np.asarray(out_f, dtype=np.int64)
+    return vertices, faces, used, None if len(used) <= target else 1.0 - target / len(used)
 
 
 @dataclass(frozen=True)
@@ -96,6 +144,7 @@ def embed(
     *,
     normals: np.ndarray | None = None,
     candidates: int = CANDIDATES,
+    around: np.ndarray | None = None,
 ) -> Embedding:
     """Tie each of ``points`` (n, 3) to its closest triangle of the proxy ``faces`` of ``vertices``.
 
@@ -105,11 +154,22 @@ def embed(
     closest of all. ``candidates``: the triangles, nearest by centroid, each point looks among
     (``mesh.closest``; fewer is faster, and enough for points on the proxy's surface, as a dense
     mesh's own vertices are).
+
+    ``around`` (n,) int64: a proxy vertex on each point's own sheet (``decimate_mapped``'s
+    ``source``; -1: none). Where the proxy's two sheets cross (the decimated lips of a 1.68M head
+    overlap where the lips touch, both facing forward at their front) the closest triangle facing a
+    point's way can still be the other sheet's. A point whose triangle has no corner within
+    ``SHEET_RINGS`` edges of its ``around`` vertex, or that no nearby triangle faces, takes the
+    closest triangle with a corner there instead (facing its way where one does), when that lies
+    less than ``SHEET_SLACK_REL`` × the proxy's median edge further away (a collapse can carry a
+    vertex's mapping a few edges off: then the first answer stays).
     """
     points = np.asarray(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     found = closest_points(vertices, faces, points, query_normals=normals, candidates=candidates)
+    if around is not None:
+        _keep_to_sheet(found, vertices, faces, points, normals, np.asarray(around, dtype=np.int64))
     if normals is not None and np.any(found.faces < 0):  # facing no triangle: the closest of all
         lost = np.flatnonzero(found.faces < 0)
         anyway = closest_points(vertices, faces, points[lost], candidates=candidates)
@@ -120,6 +180,57 @@ def embed(
     triangles = faces[found.faces]
     offset = np.einsum("nkd,nd->nk", _frames(vertices[triangles]), points - found.points)
     return Embedding(triangles, found.bary, offset, len(vertices))
+
+
+def _keep_to_sheet(
+    found: ClosestPoints,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    points: np.ndarray,
+    normals: np.ndarray | None,
+    around: np.ndarray,
+) -> None:
+    """``found`` (changed in place) with each point's triangle within ``SHEET_RINGS`` edges of its
+    ``around`` vertex (see ``embed``): the points whose triangle is not are searched again among
+    the triangles with a corner there."""
+    n = len(vertices)
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    step = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    step = (step + step.T + sparse.identity(n)).tocsr().astype(bool)
+    reach = step
+    for _ in range(SHEET_RINGS - 1):
+        reach = (reach @ step).astype(bool)  # (n, n): within SHEET_RINGS edges
+    has = np.flatnonzero((around >= 0) & (found.faces >= 0))
+    corners = faces[found.faces[has]]  # (h, 3)
+    near = np.zeros(len(has), dtype=bool)
+    for j in range(3 if len(has) else 0):  # (scipy's pair indexing takes no empty arrays)
+        near |= np.asarray(reach[around[has], corners[:, j]]).ravel().astype(bool)
+    # and those no candidate faces (the underside of a lip, whose nearest triangles by centroid are
+    # the other lip's): the closest of all would be the other sheet's
+    redo = np.union1d(has[~near], np.flatnonzero((around >= 0) & (found.faces < 0)))
+    if not len(redo):
+        return
+    incidence = sparse.csr_matrix(
+        (np.ones(faces.size), (faces.ravel(), np.repeat(np.arange(len(faces)), 3))), shape=(n, len(faces))
+    )
+    options = (reach[around[redo]] @ incidence).tocsr()  # (r, m): triangles with a corner in reach
+    width = np.diff(options.indptr)
+    among = np.empty((len(redo), width.max()), dtype=np.int64)
+    for i in range(len(redo)):  # padded with the row's first triangle (repeats are harmless)
+        row = options.indices[options.indptr[i] : options.indptr[i + 1]]
+        among[i] = row[np.minimum(np.arange(among.shape[1]), len(row) - 1)]
+    again = closest_points(
+        vertices, faces, points[redo], query_normals=None if normals is None else normals[redo], among=among
+    )
+    if normals is not None and np.any(again.faces < 0):
+        lost = np.flatnonzero(again.faces < 0)
+        anyway = closest_points(vertices, faces, points[redo[lost]], among=among[lost])
+        for name in ("points", "faces", "bary", "distance"):
+            getattr(again, name)[lost] = getattr(anyway, name)
+    edge = np.median(np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1))
+    take = again.distance <= found.distance[redo] + SHEET_SLACK_REL * edge
+    for name in ("points", "faces", "bary", "distance"):
+        getattr(found, name)[redo[take]] = getattr(again, name)[take]
 
 
 def _frames(corners: np.ndarray) -> np.ndarray:

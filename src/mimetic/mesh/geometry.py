@@ -38,6 +38,19 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return out / np.where(length > 0, length, 1.0)
 
 
+def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each vertex's share (n,) float64 of the surface ``faces`` (m, 3) over ``vertices`` (n, 3): a
+    third of the area of every triangle it is a corner of (squared units; 0 for unused vertices).
+
+    Weighting a per-vertex value by these shares averages it over the surface, exactly for values
+    linear over each triangle (``np.average(y, weights=vertex_areas(v, f))`` is the surface's area
+    centroid height), so the average does not depend on how densely or evenly the surface is
+    sampled, as a plain mean over the vertices does.
+    """
+    area = 0.5 * np.linalg.norm(face_normals(vertices, faces, unit=False), axis=1)  # (m,)
+    return np.bincount(faces.ravel(), np.repeat(area / 3.0, 3), len(vertices))
+
+
 # --- topology -----------------------------------------------------------------------------------
 # These take ``faces`` (m, 3) int64 only, so they serve the loader, the validator, the head
 # generator and the fitting code alike. Edges are undirected and stored as sorted pairs (i < j).
