@@ -430,15 +430,15 @@ def transfer_rig(
         weights, rig_vertices, outer_faces, JAW_SMOOTH_REL * scale, reference.bone_index("jaw")
     )
 
-    # regions and wire sets: membership by interpolated indicator
+    # regions and wire sets: membership by interpolated indicator, the rigid parts left out
     def members(ref_ids: np.ndarray) -> np.ndarray:
+        """The user's deformable vertices (sorted) whose interpolated indicator of ``ref_ids`` is high."""
         indicator = np.zeros(mesh_ref.n_vertices)
         indicator[ref_ids] = 1.0
         value = (hit.bary * indicator[corners]).sum(axis=1)
-        return np.nonzero(value >= MEMBERSHIP)[0].astype(np.int64)
+        return np.nonzero((value >= MEMBERSHIP) & ~in_rigid)[0].astype(np.int64)
 
-    rigid_ids = np.nonzero(in_rigid)[0]
-    regions = {name: np.setdiff1d(members(ids), rigid_ids) for name, ids in reference.regions.items()}
+    regions = {name: members(ids) for name, ids in reference.regions.items()}
     if "upper_lip" in regions and "lower_lip" in regions:
         both = np.intersect1d(regions["upper_lip"], regions["lower_lip"])
         if len(both):
@@ -454,7 +454,10 @@ def transfer_rig(
 
     # parts of the user mesh: deformable surface, and the rigid parts found above
     face_first = user.faces[:, 0]
-    parts = {part: np.nonzero(np.isin(face_first, ids))[0] for part, ids in rigid.items()}
+    part_of = np.full(len(rig_vertices), -1)
+    for k, ids in enumerate(rigid.values()):
+        part_of[ids] = k
+    parts = {part: np.nonzero(part_of[face_first] == k)[0] for k, part in enumerate(rigid)}
     parts["skin"] = np.nonzero(~in_rigid[face_first])[0]
     user_rig_mesh = Mesh(
         rig_vertices, user.faces, parts=dict(sorted(parts.items())), colors=user.colors, units=user.units
@@ -486,7 +489,7 @@ def transfer_rig(
                 side=w.side,
                 points=tuple(next(moved) for _ in w.points),
                 dropoff_rel=w.dropoff_rel,
-                vertices=np.setdiff1d(members(w.vertices), rigid_ids),
+                vertices=members(w.vertices),
                 muscle_weights=dict(w.muscle_weights),
                 rest_weight=w.rest_weight,
             )
