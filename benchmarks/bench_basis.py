@@ -242,6 +242,16 @@ def round_robin(
     return {name: statistics.median(s) for name, s in samples.items()}
 
 
+def round_robin_frames(
+    cases: dict, frames: list[int], rounds: int
+) -> tuple[dict[str, float], dict[str, float]]:
+    """``round_robin`` of every case, then of the single-frame ones (``frames`` per case, in order)
+    again with ``warm``: the seconds per call with single frames timed warm, and the first timing."""
+    cold = round_robin(cases, rounds)
+    single = {case: c for (case, c), f in zip(cases.items(), frames, strict=True) if f == 1}
+    return {**cold, **round_robin(single, rounds, warm=True)}, cold
+
+
 def table(header: tuple[str, ...], rows: list[tuple[str, ...]], title: str = "", caption: str = "") -> str:
     """A table of formatted cells printed with rich; returned as Markdown (``report.show``)."""
     return report.show(title, header, rows, caption)
@@ -293,10 +303,7 @@ def bench(basis: Basis, label: str, quick: bool) -> tuple[list, list[str], dict[
                 1,
             )
             frames[f"dense {name}, batch of {f}"] = frames[f"evaluate_basis {name}, batch of {f}"] = f
-    seconds = round_robin(cases, rounds)
-    cold = dict(seconds)
-    single = {case: c for case, c in cases.items() if frames[case] == 1}
-    seconds.update(round_robin(single, rounds, warm=True))  # one frame after another, as a loop runs them
+    seconds, cold = round_robin_frames(cases, [frames[case] for case in cases], rounds)
     per_frame = {case: s / frames[case] for case, s in seconds.items()}
     rows = []
     for case, t in per_frame.items():
