@@ -184,3 +184,39 @@ def test_wire_moves_the_skin_a_transferred_set_misses():
     np.testing.assert_allclose(
         WireEngine(holed).muscle_offsets(values), expected, rtol=0, atol=1e-12 * rig.scale
     )
+
+
+def test_a_left_out_lip_takes_a_wire_over_a_fixed_distance_from_its_edge():
+    """A wire that leaves a lip out (so the lips can part) moved the lip's skin not at all, a step
+    across one edge at the lip region's border (the nasolabial line): a furrow on a 27k head, a crack
+    a fraction of a millimetre wide on a dense scan. The lip's skin within ``LIP_EDGE_REL`` of the
+    wire's other skin now takes a share falling linearly to 0 across that distance, whatever the
+    resolution; the rest of the lip still none (but where the lips join)."""
+    from scipy.spatial import cKDTree
+
+    from mimetic.engines.wire import LIP_EDGE_REL, deformable_vertices, deformation_set
+    from mimetic.fit.pipeline import rig_head
+    from mimetic.testing import ict_landmarks, load_ict, require_shared_data
+
+    # ICT's scan: its lip regions reach the nasolabial lines, where the zygomatic's wires meet them
+    # (on the generated head no wire's other skin comes that close to a lip it leaves out)
+    ict, meta = load_ict(require_shared_data("ict-facekit"))
+    rig = rig_head(ict, ict_landmarks(ict, meta)).rig
+    v, f = rig.mesh.vertices, rig.mesh.faces
+    joint = lip_joint(rig)
+    skin = deformable_vertices(rig)
+    lips = np.union1d(rig.regions["upper_lip"], rig.regions["lower_lip"])
+    edge = LIP_EDGE_REL * rig.scale
+    tapered = 0
+    for w in rig.wires:
+        cv = np.array([p.position(v, f) for p in w.points])
+        ids, share = deformation_set(rig, w, cv, skin, joint)
+        partial = np.isin(ids, lips) & (share < 1.0) & (joint[ids] == 0)
+        if not partial.any():
+            continue
+        outside = ids[~np.isin(ids, lips) & (share == 1.0)]
+        gap, _ = cKDTree(v[outside]).query(v[ids[partial]])
+        np.testing.assert_allclose(share[partial], 1.0 - gap / edge, atol=1e-12)
+        assert (gap < edge).all()
+        tapered += int(partial.sum())
+    assert tapered > 0  # some wires leave a lip out next to their skin (none took any of it before)

@@ -69,6 +69,13 @@ close to where the lips join is moved by the other lip's wires too (``lip_joint`
 LEFT_OUT_SHARE = 0.05
 """A wire leaves a lip out when at most this share of the lip's vertices within its dropoff are in its
 deformation set (the recipe's sets hold none of the lip they leave out)."""
+LIP_EDGE_REL = 0.011
+"""Where a wire leaves a lip out, the lip's skin within this fraction of the head height of the
+wire's other skin still takes a share of it, falling linearly to 0 (1 at that skin): the step from
+``f(d/d0)`` to 0 at the lip region's edge (the nasolabial and marionette lines) spans this distance
+at every resolution. 0.011 is the median edge across the lip regions' borders on ICT's 26.7k head
+(0.25 cm), where the step spanned one edge and reads as a furrow; on a dense scan it spanned a
+fraction of a millimetre, a crack (docs/rigging.md)."""
 LIP_JOIN_OUTER_REL = 0.3
 """Where the lips join counts in the outer 30 % of each half of the mouth and beyond the corners, not
 in the middle (a mesh that closes its mouth slit with triangles joins the lips all along)."""
@@ -174,22 +181,34 @@ def deformation_set(
     (``skin``, sorted) within its dropoff that is not in a lip it leaves out (a transferred set has
     holes where the user's skin lies within the dropoff but its reference point did not, each a
     step from ``f(d/d0)`` to 0 that folds the skin), and, with share ``joint`` (n,)
-    (``lip_joint``), the left-out lip's vertices near where the lips join. A lip is left out when at
-    most ``LEFT_OUT_SHARE`` of its vertices within the dropoff are in the set.
+    (``lip_joint``), the left-out lip's vertices near where the lips join, and those within
+    ``LIP_EDGE_REL`` of the set's skin outside both lips (a share falling to 0 across that distance).
+    A lip is left out when at most ``LEFT_OUT_SHARE`` of its vertices within the dropoff are in the
+    set.
     """
+    v = rig.mesh.vertices
     members = np.asarray(wire.vertices, dtype=np.int64)
-    _, _, dist = closest_on_polyline(rig.mesh.vertices[skin], cv)
+    _, _, dist = closest_on_polyline(v[skin], cv)
     reach = skin[dist < wire.dropoff_rel * rig.scale]
-    out = [np.zeros(0, np.int64)]
+    out, lips = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
     for region in ("upper_lip", "lower_lip"):
         ids = rig.regions.get(region)
-        reached = np.intersect1d(ids, reach) if ids is not None else ()
+        if ids is None:
+            continue
+        lips.append(np.asarray(ids, dtype=np.int64))
+        reached = np.intersect1d(ids, reach)
         if len(reached) and np.isin(reached, members).mean() <= LEFT_OUT_SHARE:
             out.append(np.asarray(ids, dtype=np.int64))
-    out = np.concatenate(out)
+    out = np.unique(np.concatenate(out))
     members = np.union1d(members, np.setdiff1d(reach, out))
-    joined = np.setdiff1d(out[joint[out] > 0], members)
-    return np.concatenate([members, joined]), np.concatenate([np.ones(len(members)), joint[joined]])
+    share = joint[out]
+    outside = np.setdiff1d(members, np.concatenate(lips))  # the wire's skin that is no lip's
+    if len(out) and len(outside):
+        edge = LIP_EDGE_REL * rig.scale
+        gap, _ = cKDTree(v[outside]).query(v[out], distance_upper_bound=edge)
+        share = np.maximum(share, np.clip(1.0 - gap / edge, 0.0, 1.0))  # inf (beyond the edge): 0
+    taken = ~np.isin(out, members) & (share > 0)
+    return np.concatenate([members, out[taken]]), np.concatenate([np.ones(len(members)), share[taken]])
 
 
 class WireEngine:
