@@ -221,9 +221,8 @@ def front_depth(
     inside = (box[:, 1] >= low[0]) & (box[:, 0] <= high[0]) & (box[:, 3] >= low[1]) & (box[:, 2] <= high[1])
     if keep is not None:
         inside &= keep
-    z = np.full((len(y), len(x)), np.nan)
     if not inside.any():
-        return DepthMap(x, y, z)
+        return DepthMap(x, y, np.full((len(y), len(x)), np.nan))
     triangles = vertices[faces[inside]]  # (m, 3, 3)
     top = triangles[:, :, 2].max() + step  # the rays start above everything and go down
     # the grid points in each triangle's bounding box, widened by a millionth of a step (trimesh's
