@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import trimesh
 
 from mimetic.mesh.geometry import closest_on_polyline
@@ -80,3 +81,5 @@ def test_closest_on_polyline_is_the_numpy_formula_bit_for_bit():
         np.array([[0.5, 1.0, 0.0]]), np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
     )
     assert seg[0] == 0 and t[0] == 0.5 and dist[0] == 1.0
+    with pytest.raises(ValueError, match="at least 2 points"):
+        closest_on_polyline(np.zeros((3, 3)), np.zeros((1, 3)))

@@ -405,5 +405,7 @@ def closest_on_polyline(
     """
     from mimetic.mesh.kernels import closest_on_segments  # numba loads on first use, not on import
 
+    if len(polyline) < 2:
+        raise ValueError(f"a polyline needs at least 2 points; got {len(polyline)}")
     points = np.ascontiguousarray(points, dtype=np.float64)
     return closest_on_segments(points, np.ascontiguousarray(polyline, dtype=np.float64))
