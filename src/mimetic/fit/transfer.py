@@ -103,11 +103,9 @@ def _sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
 def _correspond(mesh_ref: Mesh, faces: np.ndarray, points: np.ndarray, normals: np.ndarray) -> ClosestPoints:
     """Closest points (as indices into ``mesh_ref.faces``) on the reference triangles ``faces`` that
     face the same way as each point's normal, or on any of them where none does."""
-    hit = closest_points(mesh_ref.vertices, mesh_ref.faces[faces], points, query_normals=normals, min_cos=0.0)
-    lost = hit.faces < 0
-    if lost.any():  # no triangle facing the same way nearby (e.g. a stray inner surface): take any
-        rescue = closest_points(mesh_ref.vertices, mesh_ref.faces[faces], points[lost])
-        hit.faces[lost], hit.bary[lost] = rescue.faces, rescue.bary
+    hit = closest_points(
+        mesh_ref.vertices, mesh_ref.faces[faces], points, query_normals=normals, min_cos=0.0, or_closest=True
+    )
     hit.faces[:] = faces[hit.faces]
     return hit
 

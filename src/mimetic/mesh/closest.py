@@ -64,11 +64,14 @@ def closest_points(
     min_cos: float = 0.0,
     candidates: int = CANDIDATES,
     among: np.ndarray | None = None,
+    or_closest: bool = False,
 ) -> ClosestPoints:
     """The closest point on triangles ``faces`` (m, 3) of ``vertices`` (n, 3) to each query (q, 3).
 
     With ``query_normals`` (q, 3) (unit), triangles whose unit normal makes a cosine below
-    ``min_cos`` with the query's normal are skipped. ``among`` (q, k) int64, rows of ``faces``:
+    ``min_cos`` with the query's normal are skipped; with ``or_closest`` a query none of whose
+    candidates qualifies takes the closest of them anyway (a stray inner surface, the underside of
+    a lip whose nearest triangles are the other lip's). ``among`` (q, k) int64, rows of ``faces``:
     each query's candidate triangles (repeats allowed), instead of its ``candidates`` nearest by
     centroid.
     """
@@ -85,10 +88,13 @@ def closest_points(
     # trimesh.triangles.closest_point on each (query, candidate) pair, compiled: (q, k, 3), (q, k)
     pts, dist = _kernels().closest_on_triangles(v, f, near, q, trimesh.tol.zero)
     dist = np.where(np.isfinite(dist), dist, np.inf)
+    any_facing = dist
     if query_normals is not None:
         fn = face_normals(v, f)
         cos = np.einsum("qkd,qd->qk", fn[near], np.asarray(query_normals, dtype=np.float64))
         dist = np.where(cos >= min_cos, dist, np.inf)
+    if or_closest:
+        dist = np.where(np.isfinite(dist).any(axis=1, keepdims=True), dist, any_facing)
     best = np.argmin(dist, axis=1)
     rows = np.arange(len(q))
     face = near[rows, best]

@@ -18,6 +18,7 @@ import numpy as np
 from scipy import sparse
 
 from mimetic.mesh.closest import CANDIDATES, ClosestPoints, closest_points
+from mimetic.mesh.geometry import vertex_adjacency
 
 SHEET_RINGS = 2
 """How many edges of the proxy a point's triangle may lie from the vertex its own sheet collapsed into
@@ -194,9 +195,7 @@ def _keep_to_sheet(
     ``around`` vertex (see ``embed``): the points whose triangle is not are searched again among
     the triangles with a corner there."""
     n = len(vertices)
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    step = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-    step = (step + step.T + sparse.identity(n)).tocsr().astype(bool)
+    step = (vertex_adjacency(faces, n) + sparse.identity(n)).tocsr().astype(bool)  # closed one-rings
     reach = step
     for _ in range(SHEET_RINGS - 1):
         reach = (reach @ step).astype(bool)  # (n, n): within SHEET_RINGS edges
@@ -215,18 +214,19 @@ def _keep_to_sheet(
     )
     options = (reach[around[redo]] @ incidence).tocsr()  # (r, m): triangles with a corner in reach
     width = np.diff(options.indptr)
-    among = np.empty((len(redo), width.max()), dtype=np.int64)
-    for i in range(len(redo)):  # padded with the row's first triangle (repeats are harmless)
-        row = options.indices[options.indptr[i] : options.indptr[i + 1]]
-        among[i] = row[np.minimum(np.arange(among.shape[1]), len(row) - 1)]
+    # each row's triangles, padded with its last (repeats are harmless)
+    among = options.indices[
+        options.indptr[:-1, None] + np.minimum(np.arange(width.max()), width[:, None] - 1)
+    ]
     again = closest_points(
-        vertices, faces, points[redo], query_normals=None if normals is None else normals[redo], among=among
+        vertices,
+        faces,
+        points[redo],
+        query_normals=None if normals is None else normals[redo],
+        among=among,
+        or_closest=True,
     )
-    if normals is not None and np.any(again.faces < 0):
-        lost = np.flatnonzero(again.faces < 0)
-        anyway = closest_points(vertices, faces, points[redo[lost]], among=among[lost])
-        for name in ("points", "faces", "bary", "distance"):
-            getattr(again, name)[lost] = getattr(anyway, name)
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])  # each side of each face
     edge = np.median(np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1))
     take = again.distance <= found.distance[redo] + SHEET_SLACK_REL * edge
     for name in ("points", "faces", "bary", "distance"):
