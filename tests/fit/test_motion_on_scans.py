@@ -18,7 +18,7 @@ import pytest
 
 from mimetic.engines import make_engine
 from mimetic.fit.pipeline import rig_head
-from mimetic.mesh.model import Mesh
+from mimetic.mesh.model import Mesh, SurfacePoint
 from mimetic.quality import edge_stretch, implied_weights, matched_jaw_open, rigid_motion
 from mimetic.testing import ict_expressions, ict_face_faces, ict_landmarks, load_ict, require_shared_data
 
@@ -141,3 +141,21 @@ def test_a_chin_low_over_the_neck_opens_without_a_tear(ict):
     match = matched_jaw_open(engine, float(np.linalg.norm(delta[menton])))
     faces = rig.mesh.faces[np.all(rig.mesh.faces < FACE.stop, axis=1)]
     assert edge_stretch(rest, match.vertices, faces).widest < 0.45  # cm; 0.35 measured
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_lips_whose_margin_is_missed_keep_their_sides(ict):
+    """An identity at σ 3 (s4, a calibration head of the sweep) whose lower margin is not found
+    beside the mouth's middle (the lower lip rises behind the upper lip's edge): the geodesic split of
+    the lips gave those stretches of the lower lip, and the chin below them, the upper lip's side,
+    and ICT's jaw drop tore the lower lip open by 1.02 cm. Each lip's front now seeds its side too
+    (``transfer._lip_fronts``)."""
+    meta, delta = ict[1], ict[3]
+    rig = identity_rig(4, 3.0)
+    engine = make_engine(rig, "wire")
+    rest = engine.deform(np.array([c.default for c in rig.channels]))
+    menton = int(meta["landmarks_68"]["vertex_indices"][8])
+    chin = SurfacePoint.at_vertex(menton, rig.mesh.faces)
+    match = matched_jaw_open(engine, float(np.linalg.norm(delta[menton])), chin=chin)
+    faces = ict_face_faces(rig.mesh, meta)
+    assert edge_stretch(rest, match.vertices, faces).widest < 0.45  # cm; 0.38 measured

@@ -63,6 +63,12 @@ checked on ICT identities (benchmarks/bench_weights.py)."""
 CORNER_FREE_REL = 0.1
 """... except within this × the width of either corner (along the line through them), where the
 margins meet and which side a vertex is on is a matter of millimetres (the corners blend both)."""
+LIP_FRONT_REL = (0.12, 0.18)
+"""Each lip's front seeds lie this far (× the mouth's width) above or below the opening's line
+(``_lip_fronts``): about the vermilion's border, set from ICT's lip heights (upper 0.17, lower 0.19 ×
+its 5.1 cm mouth width), not fitted on any head's motion."""
+LIP_FRONT_INSET = 0.15
+"""... and this far (× the width) in from either corner, where the lips' fronts meet."""
 JAW_SMOOTH_REL = 0.022  # diffusion length of the jaw weight over the user's skin, × the head height (3 mm)
 
 
@@ -306,6 +312,36 @@ def close_lids(
     return out, bones
 
 
+def _lip_fronts(
+    points: np.ndarray,
+    faces: np.ndarray,
+    normals: np.ndarray,
+    mouth: Opening,
+    upper: np.ndarray,
+    lower: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The lips' margin seeds ``upper``, ``lower`` (a,), (b,) int64 with each lip's front added: the
+    forward-facing vertices of ``points`` (n, 3) (``normals`` (n, 3)) between ``LIP_FRONT_REL`` × the
+    mouth's width above the opening's upper line (upper) or below its lower line (lower), seen from
+    the front, away from the corners and not behind the lips.
+
+    A lip whose margin is not found over a stretch (tucked behind or inside the other lip, on heads
+    whose lips overlap) has no seed there, and the geodesic split (``opening_sides``) then hands the
+    other lip's side to its whole front down to the chin; its front, below or above the line where
+    any head shows it, is always found.
+    """
+    used = np.unique(faces)
+    p = points[used]
+    near, far = LIP_FRONT_REL[0] * mouth.width, LIP_FRONT_REL[1] * mouth.width
+    above = p[:, 1] - np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 1])
+    below = np.interp(p[:, 0], mouth.lower[:, 0], mouth.lower[:, 1]) - p[:, 1]
+    depth = np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 2]) - p[:, 2]
+    front = mouth.between_corners(p, LIP_FRONT_INSET) & (normals[used, 2] > 0.5) & (depth < far)
+    with_upper = used[front & (above > near) & (above < far)]
+    with_lower = used[front & (below > near) & (below < far)]
+    return np.union1d(upper, with_upper), np.union1d(lower, with_lower)
+
+
 def _sided(
     mesh_ref: Mesh,
     in_model: np.ndarray,
@@ -332,9 +368,13 @@ def _sided(
             continue
         reach = SIDE_REACH[feature.split("_")[0]] * opening.width
         seeds = opening_margins(in_model, faces, {feature: opening})[feature]
+        ref_reach = reach
+        if feature == "mouth":
+            seeds = _lip_fronts(in_model, faces, normals, opening, *seeds)
+            ref_reach += LIP_FRONT_REL[1] * opening.width  # every sided user vertex finds its side there
         user_side = opening_sides(in_model, faces, *seeds, reach)
         user_side[~opening.between_corners(in_model, CORNER_FREE_REL)] = 0
-        ref_side = opening_sides(mesh_ref.vertices, ref_faces, *margins[feature], reach)
+        ref_side = opening_sides(mesh_ref.vertices, ref_faces, *margins[feature], ref_reach)
         face_side = np.sign(ref_side[ref_faces].astype(np.int64).sum(axis=1))
         for side in (1, -1):
             mine = candidates[face_side == side]
