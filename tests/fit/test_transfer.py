@@ -53,6 +53,25 @@ def test_a_jaw_weight_step_across_parted_lips_stays_a_step():
     np.testing.assert_allclose(_smooth_jaw(weights, vertices, faces, 0.15, jaw=1), weights, atol=1e-12)
 
 
+def test_the_neck_weight_is_diffused_again_over_its_own_length():
+    """Neck skin of 1 cm edges (y < 0): the jaw weight steps from 0.5 to 0 across one of them (where
+    the chin's ramp meets the still neck); diffused again over the neck's length, no neck edge keeps
+    a step over 0.15, and the skin above the neck keeps what the first diffusion gave it."""
+    vertices, faces = grid(21, 1.0)
+    weights = np.zeros((len(vertices), 2))
+    weights[:, 1] = np.where(vertices[:, 1] > -5, 0.5, 0.0)
+    weights[:, 0] = 1.0 - weights[:, 1]
+    neck = vertices[:, 1] < 0
+    plain = _smooth_jaw(weights, vertices, faces, 0.05, 1)
+    out = _smooth_jaw(weights, vertices, faces, 0.05, 1, neck=neck, neck_length=3.0)
+    np.testing.assert_array_equal(out[~neck], plain[~neck])
+    np.testing.assert_allclose(out.sum(axis=1), 1.0)
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    inside = edges[neck[edges].all(axis=1) & (vertices[edges, 1] < -2).all(axis=1)]
+    assert np.abs(np.diff(plain[inside, 1], axis=1)).max() > 0.25
+    assert np.abs(np.diff(out[inside, 1], axis=1)).max() < 0.15
+
+
 def test_soft_mouth_vertices_follow_their_nearer_tooth_row():
     upper = np.array([[x, 1.0, 0.0] for x in np.linspace(-2, 2, 9)])  # a tooth row at y = 1
     lower = upper - np.array([0.0, 2.0, 0.0])  # and one at y = -1

@@ -70,6 +70,11 @@ its 5.1 cm mouth width), not fitted on any head's motion."""
 LIP_FRONT_INSET = 0.15
 """... and this far (× the width) in from either corner, where the lips' fronts meet."""
 JAW_SMOOTH_REL = 0.022  # diffusion length of the jaw weight over the user's skin, × the head height (3 mm)
+NECK_SMOOTH_REL = 0.05
+"""Diffusion length of the jaw weight below the menton, × the head height (1.1 cm: the neck's
+edges are 0.7-1.1 cm on ICT's identities). Set from those edges, one value tried; the sweep's
+calibration heads s4 σ3 and s6 σ2 went 0.38 → 0.31 and 0.42 → 0.45 cm widest, ICT's jaw weights
+3.9 → 3.8 % off its jawOpen's."""
 
 
 def rig_frame(to_model: Similarity) -> Similarity:
@@ -230,20 +235,34 @@ def _cavity_jaw(points: np.ndarray, mouth: Opening) -> np.ndarray:
 
 
 def _smooth_jaw(
-    weights: np.ndarray, vertices: np.ndarray, faces: np.ndarray, length: float, jaw: int
+    weights: np.ndarray,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    length: float,
+    jaw: int,
+    *,
+    neck: np.ndarray | None = None,
+    neck_length: float = 0.0,
 ) -> np.ndarray:
     """``weights`` (n, bones) with the jaw weight (column ``jaw``) diffused over ``faces`` by
-    ``length`` (``mesh.geometry.smooth_field``), the head bone (column 0) taking the rest.
+    ``length`` (``mesh.geometry.smooth_field``), then over the ``neck`` (n,) bool vertices when given
+    (those below the menton) by ``neck_length``, the head bone (column 0) taking the rest.
 
     The reference's lips meet at its mouth corners; a scan's lips often run on into a commissure
     fold, and its skin there takes the upper lip's weight on one side and the lower lip's on the
     other, across a row of faces that the jaw would tear open into a wall. Diffusing the jaw weight
     over the user's own skin turns every such step into a slope a few ``length`` wide, so no edge
     stretches much more than its neighbours; where the lips really part no face spans the opening,
-    and their weights stay apart.
+    and their weights stay apart. Under the jaw a scan's edges are often ten times longer than on
+    the lips (up to 1.1 cm on ICT's identities), and the reference's ramp from the chin down to the
+    still neck falls 0.3 across one of them: a jaw drop opens it like a tear. The neck's weight is
+    diffused again over ``neck_length``, about one such edge.
     """
     out = weights.copy()
-    out[:, jaw] = np.clip(smooth_field(weights[:, jaw], vertices, faces, length), 0.0, 1.0)
+    column = smooth_field(weights[:, jaw], vertices, faces, length)
+    if neck is not None:
+        column = smooth_field(column, vertices, faces, neck_length, free=neck)
+    out[:, jaw] = np.clip(column, 0.0, 1.0)
     out[out[:, jaw] < MIN_WEIGHT, jaw] = 0.0  # the diffusion's far tail: the forehead stays exactly still
     out[:, 0] = np.clip(1.0 - out[:, 1:].sum(axis=1), 0.0, None)
     return out / out.sum(axis=1, keepdims=True)
@@ -464,8 +483,15 @@ def transfer_rig(
     inside = in_rigid | soft_mouth | cavity
     outer_faces = user.faces[~inside[user.faces].any(axis=1)]
     scale = reference.scale * to_rig.scale  # the head height, rig units
+    neck = in_model[:, 1] < reference.landmark_positions(["menton"])[0][1]
     weights = _smooth_jaw(
-        weights, rig_vertices, outer_faces, JAW_SMOOTH_REL * scale, reference.bone_index("jaw")
+        weights,
+        rig_vertices,
+        outer_faces,
+        JAW_SMOOTH_REL * scale,
+        reference.bone_index("jaw"),
+        neck=neck,
+        neck_length=NECK_SMOOTH_REL * scale,
     )
 
     # regions and wire sets: membership by interpolated indicator, the rigid parts left out
