@@ -69,7 +69,7 @@ LIP_FRONT_REL = (0.12, 0.18)
 its 5.1 cm mouth width), not fitted on any head's motion."""
 LIP_FRONT_INSET = 0.15
 """... and this far (× the width) in from either corner, where the lips' fronts meet."""
-JAW_SMOOTH_REL = 0.022  # diffusion length of the jaw weight over the user's skin, × the head height (3 mm)
+JAW_SMOOTH_REL = 0.022  # diffusion length of the jaw weight over the user's skin, × the head height (5 mm)
 NECK_SMOOTH_REL = 0.05
 """Diffusion length of the jaw weight below the menton, × the head height (1.1 cm: the neck's
 edges are 0.7-1.1 cm on ICT's identities). Set from those edges, one value tried; the sweep's
