@@ -149,7 +149,7 @@ def test_lips_whose_margin_is_missed_keep_their_sides(ict):
     beside the mouth's middle (the lower lip rises behind the upper lip's edge): the geodesic split of
     the lips gave those stretches of the lower lip, and the chin below them, the upper lip's side,
     and ICT's jaw drop tore the lower lip open by 1.02 cm. Each lip's front now seeds its side too
-    (``transfer._lip_fronts``)."""
+    (``transfer._lip_seeds``)."""
     meta, delta = ict[1], ict[3]
     rig = identity_rig(4, 3.0)
     engine = make_engine(rig, "wire")
@@ -176,3 +176,20 @@ def test_a_neck_of_long_edges_opens_without_a_tear(ict):
     match = matched_jaw_open(engine, float(np.linalg.norm(delta[menton])), chin=chin)
     neck = rig.mesh.faces[(rig.mesh.vertices[rig.mesh.faces, 1] < rig.mesh.vertices[menton, 1]).all(axis=1)]
     assert edge_stretch(rest, match.vertices, neck).widest < 0.35  # cm; 0.30 measured over the face
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_a_lower_lip_whose_hidden_top_looks_like_the_upper_margin_keeps_its_side(ict):
+    """An identity at σ 3 (s103, a check head of the sweep) whose lower lip's top hides inside the
+    upper lip: its rim there points down, as the upper lip's underside does, so it was taken for
+    the upper margin, and the lower lip's middle took the upper lip's side (jaw 0.65 beside the
+    lip's 0.84): ICT's jaw drop opened it by 0.59 cm (1.96 before the lips' fronts seeded their
+    sides). The margin's seeds now go to the side of the front they are nearer along the skin."""
+    meta, delta = ict[1], ict[3]
+    rig = identity_rig(103, 3.0)
+    engine = make_engine(rig, "wire")
+    rest = engine.deform(np.array([c.default for c in rig.channels]))
+    menton = int(meta["landmarks_68"]["vertex_indices"][8])
+    chin = SurfacePoint.at_vertex(menton, rig.mesh.faces)
+    match = matched_jaw_open(engine, float(np.linalg.norm(delta[menton])), chin=chin)
+    assert edge_stretch(rest, match.vertices, ict_face_faces(rig.mesh, meta)).widest < 0.45  # cm; 0.39

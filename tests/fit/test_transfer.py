@@ -55,8 +55,8 @@ def test_a_jaw_weight_step_across_parted_lips_stays_a_step():
 
 def test_the_neck_weight_is_diffused_again_over_its_own_length():
     """Neck skin of 1 cm edges (y < 0): the jaw weight steps from 0.5 to 0 across one of them (where
-    the chin's ramp meets the still neck); diffused again over the neck's length, no neck edge keeps
-    a step over 0.15, and the skin above the neck keeps what the first diffusion gave it."""
+    the chin's ramp meets the still neck); diffused again there over 3 edges, no neck edge keeps a
+    step over 0.15, and the skin above the neck keeps what the first, short diffusion gave it."""
     vertices, faces = grid(21, 1.0)
     weights = np.zeros((len(vertices), 2))
     weights[:, 1] = np.where(vertices[:, 1] > -5, 0.5, 0.0)
@@ -67,8 +67,8 @@ def test_the_neck_weight_is_diffused_again_over_its_own_length():
     np.testing.assert_array_equal(out[~neck], plain[~neck])
     np.testing.assert_allclose(out.sum(axis=1), 1.0)
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    inside = edges[neck[edges].all(axis=1) & (vertices[edges, 1] < -2).all(axis=1)]
-    assert np.abs(np.diff(plain[inside, 1], axis=1)).max() > 0.25
+    inside = edges[(vertices[edges, 1] < -2).all(axis=1)]
+    assert np.abs(np.diff(plain[inside, 1], axis=1)).max() > 0.45
     assert np.abs(np.diff(out[inside, 1], axis=1)).max() < 0.15
 
 

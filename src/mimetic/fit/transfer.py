@@ -65,7 +65,7 @@ CORNER_FREE_REL = 0.1
 margins meet and which side a vertex is on is a matter of millimetres (the corners blend both)."""
 LIP_FRONT_REL = (0.12, 0.18)
 """Each lip's front seeds lie this far (× the mouth's width) above or below the opening's line
-(``_lip_fronts``): about the vermilion's border, set from ICT's lip heights (upper 0.17, lower 0.19 ×
+(``_lip_seeds``): about the vermilion's border, set from ICT's lip heights (upper 0.17, lower 0.19 ×
 its 5.1 cm mouth width), not fitted on any head's motion."""
 LIP_FRONT_INSET = 0.15
 """... and this far (× the width) in from either corner, where the lips' fronts meet."""
@@ -246,7 +246,8 @@ def _smooth_jaw(
 ) -> np.ndarray:
     """``weights`` (n, bones) with the jaw weight (column ``jaw``) diffused over ``faces`` by
     ``length`` (``mesh.geometry.smooth_field``), then over the ``neck`` (n,) bool vertices when given
-    (those below the menton) by ``neck_length``, the head bone (column 0) taking the rest.
+    (those below the menton) by ``neck_length`` (the others held), the head bone (column 0) taking
+    what the jaw leaves.
 
     The reference's lips meet at its mouth corners; a scan's lips often run on into a commissure
     fold, and its skin there takes the upper lip's weight on one side and the lower lip's on the
@@ -256,7 +257,7 @@ def _smooth_jaw(
     and their weights stay apart. Under the jaw a scan's edges are often ten times longer than on
     the lips (up to 1.1 cm on ICT's identities), and the reference's ramp from the chin down to the
     still neck falls 0.3 across one of them: a jaw drop opens it like a tear. The neck's weight is
-    diffused again over ``neck_length``, about one such edge.
+    diffused again there, over about one such edge.
     """
     out = weights.copy()
     column = smooth_field(weights[:, jaw], vertices, faces, length)
@@ -331,34 +332,42 @@ def close_lids(
     return out, bones
 
 
-def _lip_fronts(
+def _lip_seeds(
     points: np.ndarray,
     faces: np.ndarray,
     normals: np.ndarray,
     mouth: Opening,
     upper: np.ndarray,
     lower: np.ndarray,
+    reach: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The lips' margin seeds ``upper``, ``lower`` (a,), (b,) int64 with each lip's front added: the
-    forward-facing vertices of ``points`` (n, 3) (``normals`` (n, 3)) between ``LIP_FRONT_REL`` × the
-    mouth's width above the opening's upper line (upper) or below its lower line (lower), seen from
-    the front, away from the corners and not behind the lips.
+    """The seeds (a,), (b,) int64 of the lips' geodesic split (``opening_sides``): each lip's front
+    and the margin seeds ``upper``, ``lower``, each margin seed on the side of the front it is
+    nearer along the surface of ``points`` (n, 3) (within ``reach``; else where it was found).
 
-    A lip whose margin is not found over a stretch (tucked behind or inside the other lip, on heads
-    whose lips overlap) has no seed there, and the geodesic split (``opening_sides``) then hands the
-    other lip's side to its whole front down to the chin; its front, below or above the line where
-    any head shows it, is always found.
+    A lip's front is the forward-facing skin (``normals`` (n, 3)) between ``LIP_FRONT_REL`` × the
+    mouth's width above the opening's upper line (upper) or below its lower line (lower), seen from
+    the front, away from the corners and not behind the lips: on any head it is where the lip
+    shows. Its margin is not: where a lower lip rises behind the upper lip's edge (lips that
+    overlap), no lower margin is found over a stretch, or its hidden top is taken for the upper
+    margin (the rim's normal points down), and the split then hands that stretch of the lower lip,
+    and the chin below it, the upper lip's side.
     """
-    used = np.unique(faces)
+    used = np.zeros(len(points), dtype=bool)
+    used[faces.ravel()] = True
+    used = np.flatnonzero(used)
     p = points[used]
     near, far = LIP_FRONT_REL[0] * mouth.width, LIP_FRONT_REL[1] * mouth.width
     above = p[:, 1] - np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 1])
     below = np.interp(p[:, 0], mouth.lower[:, 0], mouth.lower[:, 1]) - p[:, 1]
     depth = np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 2]) - p[:, 2]
     front = mouth.between_corners(p, LIP_FRONT_INSET) & (normals[used, 2] > 0.5) & (depth < far)
-    with_upper = used[front & (above > near) & (above < far)]
-    with_lower = used[front & (below > near) & (below < far)]
-    return np.union1d(upper, with_upper), np.union1d(lower, with_lower)
+    front_upper = used[front & (above > near) & (above < far)]
+    front_lower = used[front & (below > near) & (below < far)]
+    side = opening_sides(points, faces, front_upper, front_lower, reach)
+    to_upper = np.concatenate([upper[side[upper] >= 0], lower[side[lower] > 0]])
+    to_lower = np.concatenate([lower[side[lower] <= 0], upper[side[upper] < 0]])
+    return np.union1d(to_upper, front_upper), np.union1d(to_lower, front_lower)
 
 
 def _sided(
@@ -389,7 +398,7 @@ def _sided(
         seeds = opening_margins(in_model, faces, {feature: opening})[feature]
         ref_reach = reach
         if feature == "mouth":
-            seeds = _lip_fronts(in_model, faces, normals, opening, *seeds)
+            seeds = _lip_seeds(in_model, faces, normals, opening, *seeds, reach)
             ref_reach += LIP_FRONT_REL[1] * opening.width  # every sided user vertex finds its side there
         user_side = opening_sides(in_model, faces, *seeds, reach)
         user_side[~opening.between_corners(in_model, CORNER_FREE_REL)] = 0

@@ -494,8 +494,10 @@ def margin_distance(vertices: np.ndarray, faces: np.ndarray, seeds: np.ndarray, 
     return _distance(_edge_graph(vertices, faces), seeds, reach)
 
 
+@per_arrays(2)
 def _edge_graph(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
-    """The edges of ``faces`` as an (n, n) CSR graph weighted by their lengths (upper triangle)."""
+    """The edges of ``faces`` as an (n, n) CSR graph weighted by their lengths (upper triangle);
+    remembered for read-only arrays (never changed by its callers)."""
     edges = edges_unique(faces)
     length = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
     return sp.coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(len(vertices),) * 2).tocsr()
