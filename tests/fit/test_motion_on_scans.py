@@ -149,7 +149,7 @@ def test_lips_whose_margin_is_missed_keep_their_sides(ict):
     beside the mouth's middle (the lower lip rises behind the upper lip's edge): the geodesic split of
     the lips gave those stretches of the lower lip, and the chin below them, the upper lip's side,
     and ICT's jaw drop tore the lower lip open by 1.02 cm. Each lip's front now seeds its side too
-    (``transfer._lip_seeds``)."""
+    (``fit.sides.lip_seeds``)."""
     meta, delta = ict[1], ict[3]
     rig = identity_rig(4, 3.0)
     engine = make_engine(rig, "wire")
@@ -184,7 +184,8 @@ def test_a_lower_lip_whose_hidden_top_looks_like_the_upper_margin_keeps_its_side
     upper lip: its rim there points down, as the upper lip's underside does, so it was taken for
     the upper margin, and the lower lip's middle took the upper lip's side (jaw 0.65 beside the
     lip's 0.84): ICT's jaw drop opened it by 0.59 cm (1.96 before the lips' fronts seeded their
-    sides). The margin's seeds now go to the side of the front they are nearer along the skin."""
+    sides). A margin seed now goes to the other side when that side's front is clearly nearer along
+    the skin (``fit.sides.SEED_SIDE_RATIO``)."""
     meta, delta = ict[1], ict[3]
     rig = identity_rig(103, 3.0)
     engine = make_engine(rig, "wire")

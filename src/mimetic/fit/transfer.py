@@ -25,12 +25,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from mimetic.fit.sides import sides_of
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
 from mimetic.mesh.geometry import connected_components, smooth_field, vertex_areas, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
-from mimetic.mesh.openings import Opening, opening_margins, opening_sides
+from mimetic.mesh.openings import Opening
 from mimetic.rig.anatomy import closing_weights, find_accessories
 from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL, closing_pivot, lid_rims
 from mimetic.rig.model import Bone, Rig, Wire
@@ -52,23 +53,11 @@ MOUTH_PARTS = ("teeth_upper", "teeth_lower", "tongue", "mouth")
 CORNER_REACH = (
     0.5  # the mouth cavity within this × half the mouth width of a corner is smoothed with the lips
 )
-SIDE_REACH = {"eye": 0.4, "mouth": 0.6}
-"""Data keeps to its side of an opening within this × the opening's width of its margins, along the
-surface (1.2 cm around an eye, 3 cm around the mouth: the lips' inner surfaces and the cavity's front)."""
 CAVITY_RAMP_REL = (0.25, -0.5)
 """The mouth cavity's jaw weight rises from 0 at this far above the lips' line to 1 this far below
 it, × the mouth width (``_cavity_jaw``). Fitted on ICT's neutral (its jawOpen's implied weights in the
 mouth socket: 0.06 at 1.5 cm above the line, 0.15 at 0.5 cm, 0.4 at 0.5 cm below, 0.7 below 1 cm);
 checked on ICT identities (benchmarks/bench_weights.py)."""
-CORNER_FREE_REL = 0.1
-"""... except within this × the width of either corner (along the line through them), where the
-margins meet and which side a vertex is on is a matter of millimetres (the corners blend both)."""
-LIP_FRONT_REL = (0.12, 0.18)
-"""Each lip's front seeds lie this far (× the mouth's width) above or below the opening's line
-(``_lip_seeds``): about the vermilion's border, set from ICT's lip heights (upper 0.17, lower 0.19 ×
-its 5.1 cm mouth width), not fitted on any head's motion."""
-LIP_FRONT_INSET = 0.15
-"""... and this far (× the width) in from either corner, where the lips' fronts meet."""
 JAW_SMOOTH_REL = 0.022  # diffusion length of the jaw weight over the user's skin, × the head height (5 mm)
 NECK_SMOOTH_REL = 0.05
 """Diffusion length of the jaw weight below the menton, × the head height (1.1 cm: the neck's
@@ -332,44 +321,6 @@ def close_lids(
     return out, bones
 
 
-def _lip_seeds(
-    points: np.ndarray,
-    faces: np.ndarray,
-    normals: np.ndarray,
-    mouth: Opening,
-    upper: np.ndarray,
-    lower: np.ndarray,
-    reach: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The seeds (a,), (b,) int64 of the lips' geodesic split (``opening_sides``): each lip's front
-    and the margin seeds ``upper``, ``lower``, each margin seed on the side of the front it is
-    nearer along the surface of ``points`` (n, 3) (within ``reach``; else where it was found).
-
-    A lip's front is the forward-facing skin (``normals`` (n, 3)) between ``LIP_FRONT_REL`` × the
-    mouth's width above the opening's upper line (upper) or below its lower line (lower), seen from
-    the front, away from the corners and not behind the lips: on any head it is where the lip
-    shows. Its margin is not: where a lower lip rises behind the upper lip's edge (lips that
-    overlap), no lower margin is found over a stretch, or its hidden top is taken for the upper
-    margin (the rim's normal points down), and the split then hands that stretch of the lower lip,
-    and the chin below it, the upper lip's side.
-    """
-    used = np.zeros(len(points), dtype=bool)
-    used[faces.ravel()] = True
-    used = np.flatnonzero(used)
-    p = points[used]
-    near, far = LIP_FRONT_REL[0] * mouth.width, LIP_FRONT_REL[1] * mouth.width
-    above = p[:, 1] - np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 1])
-    below = np.interp(p[:, 0], mouth.lower[:, 0], mouth.lower[:, 1]) - p[:, 1]
-    depth = np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 2]) - p[:, 2]
-    front = mouth.between_corners(p, LIP_FRONT_INSET) & (normals[used, 2] > 0.5) & (depth < far)
-    front_upper = used[front & (above > near) & (above < far)]
-    front_lower = used[front & (below > near) & (below < far)]
-    side = opening_sides(points, faces, front_upper, front_lower, reach)
-    to_upper = np.concatenate([upper[side[upper] >= 0], lower[side[lower] > 0]])
-    to_lower = np.concatenate([lower[side[lower] <= 0], upper[side[upper] < 0]])
-    return np.union1d(to_upper, front_upper), np.union1d(to_lower, front_lower)
-
-
 def _sided(
     mesh_ref: Mesh,
     in_model: np.ndarray,
@@ -381,28 +332,18 @@ def _sided(
     margins: Mapping[str, tuple[np.ndarray, np.ndarray]],
     candidates: np.ndarray,
 ) -> None:
-    """Correspondences ``hit`` (changed in place) kept on the same side of each opening.
-
-    A user vertex nearer the upper margin of an opening than the lower along its surface
-    (``opening_sides``) takes its data from the reference's side of that opening's upper margin, and
-    likewise below: overlapping lips, or a fitted lip line a few millimetres off, would otherwise
-    hand the upper lip's inner surface the lower lip's weights and wires, and its triangles fold as
-    the lips part. Only ``movable`` (n,) user vertices are moved, onto the reference faces
-    ``candidates`` (f,).
+    """Correspondences ``hit`` (changed in place) kept on the same side of each opening
+    (``fit.sides``): a user vertex on a side that its closest reference face is not on finds its
+    closest point again among the faces on its side. Only ``movable`` (n,) user vertices are moved,
+    onto the reference faces ``candidates`` (f,).
     """
     ref_faces = mesh_ref.faces[candidates]
     for feature, opening in openings.items():
         if feature not in margins:
             continue
-        reach = SIDE_REACH[feature.split("_")[0]] * opening.width
-        seeds = opening_margins(in_model, faces, {feature: opening})[feature]
-        ref_reach = reach
-        if feature == "mouth":
-            seeds = _lip_seeds(in_model, faces, normals, opening, *seeds, reach)
-            ref_reach += LIP_FRONT_REL[1] * opening.width  # every sided user vertex finds its side there
-        user_side = opening_sides(in_model, faces, *seeds, reach)
-        user_side[~opening.between_corners(in_model, CORNER_FREE_REL)] = 0
-        ref_side = opening_sides(mesh_ref.vertices, ref_faces, *margins[feature], ref_reach)
+        user_side, ref_side = sides_of(
+            in_model, faces, normals, mesh_ref.vertices, ref_faces, feature, opening, margins[feature]
+        )
         face_side = np.sign(ref_side[ref_faces].astype(np.int64).sum(axis=1))
         for side in (1, -1):
             mine = candidates[face_side == side]
