@@ -251,7 +251,8 @@ def _smooth_jaw(
     out = weights.copy()
     column = smooth_field(weights[:, jaw], vertices, faces, length)
     if neck is not None:
-        column = smooth_field(column, vertices, faces, neck_length, free=neck)
+        near = faces[neck[faces].any(axis=1)]  # every face a neck vertex is on: the same system, built small
+        column = smooth_field(column, vertices, near, neck_length, free=neck)
     out[:, jaw] = np.clip(column, 0.0, 1.0)
     out[out[:, jaw] < MIN_WEIGHT, jaw] = 0.0  # the diffusion's far tail: the forehead stays exactly still
     out[:, 0] = np.clip(1.0 - out[:, 1:].sum(axis=1), 0.0, None)
@@ -338,6 +339,7 @@ def _sided(
     onto the reference faces ``candidates`` (f,).
     """
     ref_faces = mesh_ref.faces[candidates]
+    ref_faces.setflags(write=False)  # its edge graph is built once for every opening (``mesh.memo``)
     for feature, opening in openings.items():
         if feature not in margins:
             continue
