@@ -49,7 +49,12 @@ RIGID_PARTS = {
     "tongue": "jaw",
 }
 DEFORMABLE_PARTS = ("skin", "mouth", "ear_L", "ear_R")
-MOUTH_PARTS = ("teeth_upper", "teeth_lower", "tongue", "mouth")
+MOUTH_BOX_REL = ((-1.0, 1.0), (-0.1, 0.8), (-2.5, 0.5))
+"""Where the user's mouth parts lie: (low, high) in x, y and z about the mouth's centre (the corners'
+midpoint), × the mouth width, but y's low end about the menton. Read off ICT's neutral
+and calibration heads s1 σ1 and s4 σ3 (teeth and gums within ±0.85 in x, 0.69 above the centre, 0.35
+in front of it and 2.1 behind), with room to spare; checked on s103 and s148 σ3, whose teeth stand
+1.5 cm higher than the fitted reference's and were half outside a box around its mouth parts."""
 CORNER_REACH = (
     0.5  # the mouth cavity within this × half the mouth width of a corner is smoothed with the lips
 )
@@ -133,8 +138,9 @@ def _separate_parts(
     name, and (n_user,) bool marking the soft ones inside the mouth.
 
     A connected component of the user's mesh is an eyeball when ``RIGID_SHARE`` of its vertices land
-    on a reference eyeball. It is in the mouth when that share lies in the box around the reference's
-    teeth, tongue and cavity (grown by 10 %). The mouth parts' centroid heights fall into two rows
+    on a reference eyeball. It is in the mouth when that share lies in the box ``MOUTH_BOX_REL`` sets
+    about the mouth's landmarks (on the user's skin, not the fitted reference's mouth parts, which stand
+    off a σ 3 identity's teeth by 1.5 cm). The mouth parts' centroid heights fall into two rows
     (the user's upper and lower teeth; 1-D 2-means): a part no taller than ``MAX_TOOTH_SPAN`` times
     the distance between the rows follows the head when its centroid is in the upper row's half and
     the jaw otherwise; a taller one (gums joined to the tongue, a mouth cavity) is soft (see
@@ -153,11 +159,14 @@ def _separate_parts(
         ref_part[faces] = name
     vertex_part = ref_part[hit.faces].astype(str)
     y = in_model[:, 1]  # the user's vertices in the reference frame
-    inside = mesh_ref.vertices[
-        np.concatenate([mesh_ref.part_vertices(p) for p in MOUTH_PARTS if p in mesh_ref.parts])
-    ]
-    margin = 0.1 * np.ptp(inside, axis=0)
-    box = (inside.min(axis=0) - margin, inside.max(axis=0) + margin)
+    corners, menton = np.split(
+        reference.landmark_positions(["mouth_corner_L", "mouth_corner_R", "menton"]), [2]
+    )
+    width = np.linalg.norm(corners[0] - corners[1])
+    centre = corners.mean(axis=0)
+    low, high = (np.array(MOUTH_BOX_REL) * width).T
+    box = (centre + low, centre + high)
+    box[0][1] = menton[0, 1] + low[1]  # the lower teeth reach down to the chin
     _, label = connected_components(user.faces, user.n_vertices)
     order = np.argsort(label, kind="stable")
     starts = np.flatnonzero(np.diff(label[order], prepend=-1))
