@@ -218,3 +218,18 @@ def test_teeth_that_stand_off_the_fitted_references_move_as_one_piece(ict):
         rows[rig.bones[bone[0]].name].append(height[ids].mean())
     assert len(rows["head"]) == len(rows["jaw"]) == 16
     assert min(rows["head"]) > max(rows["jaw"])  # the upper row on the head, the lower on the jaw
+
+
+def test_lids_that_sink_toward_the_eyeball_still_close():
+    """An identity at σ 2 (s129, a check head of the sweep) whose right upper lid sinks toward its
+    eyeball: a margin vertex lay inside the eye bone's sphere (fitted through ICT's cornea and films
+    as well as the sclera: larger than the sclera's), was taken for a skirt tucked inside the
+    eyeball, and kept a third of its neighbours' closing weight: the closed lid stood 0.7 cm open in
+    a tent over it. A rim vertex is tucked only inside the sclera's sphere as well."""
+    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
+
+    rig = identity_rig(129, 2.0)
+    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
+    for side in "LR":
+        gap = lid_gap(find_lid_margins(rig, side), closed)
+        assert gap.smallest > -0.01 and gap.largest <= 0.1  # cm

@@ -33,7 +33,13 @@ from mimetic.mesh.geometry import connected_components, smooth_field, vertex_are
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.mesh.openings import Opening
 from mimetic.rig.anatomy import closing_weights, find_accessories
-from mimetic.rig.anatomy.lids import LID_CLEARANCE_REL, LID_THICKNESS_REL, closing_pivot, lid_rims
+from mimetic.rig.anatomy.lids import (
+    LID_CLEARANCE_REL,
+    LID_THICKNESS_REL,
+    closing_pivot,
+    eyeball_sphere,
+    lid_rims,
+)
 from mimetic.rig.model import Bone, Rig, Wire
 
 MAX_INFLUENCES = 4
@@ -296,6 +302,8 @@ def close_lids(
         radius = float(np.linalg.norm(eye.tail - eye.head))
         gaze = (eye.tail - eye.head) / radius
         closed = reference.channel(channel).maximum
+        # a skirt is tucked inside the sclera's sphere too, as the lid contact finds it (the bone's
+        # runs through the whole eye part, ICT's cornea and films with it, and is larger)
         rims = lid_rims(
             mesh.vertices,
             mesh.faces,
@@ -305,6 +313,7 @@ def close_lids(
             centre=eye.head,
             radius=radius,
             gaze=gaze,
+            sclera=eyeball_sphere(mesh.vertices, mesh.faces, mesh.parts, regions, side, eye_corners),
         )
         if rims is not None:
             pivot = closing_pivot(rims, mesh.vertices, lid.head, closed)

@@ -77,6 +77,7 @@ __all__ = [
     "closing_weights",
     "eye_frame",
     "eye_sphere",
+    "eyeball_sphere",
     "eyeball_surface",
     "find_lid_contacts",
     "gaze_rim",
@@ -334,6 +335,7 @@ def lid_rims(
     centre: np.ndarray,
     radius: float,
     gaze: np.ndarray,
+    sclera: tuple[np.ndarray, float] | None = None,
 ) -> LidRims | None:
     """The rims of eye ``side``'s lids on a rest mesh (see the module docstring).
 
@@ -350,6 +352,12 @@ def lid_rims(
         The eyeball's centre and radius.
     gaze : (3,) float64
         The eye's gaze direction.
+    sclera : ((3,) float64, float), optional
+        The sclera's sphere (``eyeball_sphere``) when ``centre`` and ``radius`` are another's (an eye
+        bone's, through the whole eye part): a rim vertex is tucked only inside both. The whole
+        part's sphere (ICT's cornea and films with the sclera) is larger and lies farther back, and
+        where an identity's lid sinks toward its eyeball it took margin vertices that show in front
+        of the sclera for a skirt (ICT identity s129 σ2's right upper lid stayed 0.7 cm open).
 
     Returns
     -------
@@ -370,7 +378,9 @@ def lid_rims(
     inside = (uvw[lids, 0] > lo) & (uvw[lids, 0] < hi)
     lids = lids[in_front & inside]
     is_tucked = np.zeros(len(vertices), dtype=bool)
-    is_tucked[lids] = np.linalg.norm(vertices[lids] - centre, axis=1) < TUCKED_REL * radius
+    is_tucked[lids] = True
+    for ball_centre, ball_radius in ((centre, radius), sclera or (centre, radius)):
+        is_tucked[lids] &= np.linalg.norm(vertices[lids] - ball_centre, axis=1) < TUCKED_REL * ball_radius
     # the rims: where the lid ends or turns away along the gaze, or (visible layer) meets the skirt
     edges = edges_unique(faces)
     next_to_tucked = np.zeros(len(vertices), dtype=bool)
@@ -401,7 +411,7 @@ def lid_rims(
     return LidRims(origin, axes, width, tuple(upper), tuple(lower), tuple(margin))
 
 
-def _eye(
+def eyeball_sphere(
     vertices: np.ndarray,
     faces: np.ndarray,
     parts: Mapping[str, np.ndarray],
@@ -461,7 +471,9 @@ def find_lid_contacts(
     for side in ("L", "R"):
         if side not in corners:
             continue
-        eye = _eye(vertices, faces, parts, regions, side, np.asarray(corners[side], dtype=np.float64))
+        eye = eyeball_sphere(
+            vertices, faces, parts, regions, side, np.asarray(corners[side], dtype=np.float64)
+        )
         if eye is None:
             continue
         rims = lid_rims(
