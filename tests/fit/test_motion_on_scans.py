@@ -233,3 +233,18 @@ def test_lids_that_sink_toward_the_eyeball_still_close():
     for side in "LR":
         gap = lid_gap(find_lid_margins(rig, side), closed)
         assert gap.smallest > -0.01 and gap.largest <= 0.1  # cm
+
+
+def test_what_the_front_sees_of_the_upper_lid_never_closes_past_the_lower():
+    """An identity at σ 3 (s121, a check head of the sweep) with a slit of a left eye: its front
+    view shows five upper margin vertices, so the lids' rims come from the regions, and a rim deep
+    in the inner canthus took the upper margin's place there. The closing weight it needed took the
+    margin a viewer sees 0.44 cm past the lower lid. That margin is now held at the lower margin the
+    front sees (``closing_weights``); the right eye was never in question."""
+    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
+
+    rig = identity_rig(121, 3.0)
+    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
+    for side in "LR":
+        gap = lid_gap(find_lid_margins(rig, side), closed)
+        assert gap.smallest > -0.01 and gap.largest < 0.25  # cm: no crossing; 0.18 open at most

@@ -28,7 +28,8 @@ lids):
   visible upper margin is the one whose skinning (as the engines skin, eyeball sculptor included)
   at the closing angle (the ``eyelid_upper`` channel's maximum) brings it onto that line; those
   weights are smoothed along the margin (a smoothing spline in ``u``, never below the columns' own
-  weights), and every other upper-lid vertex keeps its share of its column's margin weight. A
+  weights), and every other upper-lid vertex keeps its share of its column's margin weight, but
+  never more than brings the upper margin the front sees onto the lower margin the front sees. A
   partial closure (a wink) is then a smooth curve, and a skinned export without the contact closes
   too.
 * **Pivot** (``closing_pivot``, used by the transfer): an opening taller than the closing angle can
@@ -44,7 +45,7 @@ the same margins in the same eye frame; split, each module would find the rims a
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -180,6 +181,10 @@ class LidRims:
         (highest lower rim vertex per column) inner to outer.
     upper_margin : tuple of (k,) int64
         Per layer: the lowest upper rim vertex per column, inner to outer.
+    upper_seen, lower_seen : (k,) int64, (j,) int64
+        The visible rim vertices along the opening seen from the front (what a viewer takes for the
+        margins; the lower by ``u``), whether or not the regions' rims are used instead (empty
+        without).
     """
 
     origin: np.ndarray
@@ -188,6 +193,8 @@ class LidRims:
     upper: tuple[np.ndarray, np.ndarray]
     lower: tuple[np.ndarray, np.ndarray]
     upper_margin: tuple[np.ndarray, np.ndarray]
+    upper_seen: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    lower_seen: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def uvw(self, points: np.ndarray) -> np.ndarray:
         """``points`` (k, 3) in the eye frame: (u, v, w), rig units."""
@@ -389,6 +396,7 @@ def lid_rims(
     rim = gaze_rim(vertices, faces, axes[2])
     seen = _seen_margins(vertices, faces, corners, centre, radius)
     upper, lower, margin = [], [], []
+    upper_seen = lower_seen = np.zeros(0, dtype=np.int64)
     for tucked in (False, True):
         layer = lids[is_tucked[lids] == tucked]
         ids = layer[rim[layer] | (next_to_tucked[layer] & (not tucked))]
@@ -400,6 +408,7 @@ def lid_rims(
             up_seen, low_seen = (m[keep] for m, keep in zip(seen, on_span, strict=True))
             top_seen = _envelope(up_seen, edges, uvw, lowest=True)
             bottom_seen = _envelope(low_seen, edges, uvw, lowest=False)
+            upper_seen, lower_seen = up_seen, _smooth_run(bottom_seen, uvw, width, lowest=False)
             # unless the opening's rim is sparser than the regions' (a coarse mesh: a few vertices
             # across the eye, where the regions' rim is the margin)
             if len(top_seen) >= len(top) / 2 and len(bottom_seen) >= len(bottom) / 2:
@@ -408,7 +417,7 @@ def lid_rims(
         top, bottom = _smooth_run(top, uvw, width, lowest=True), _smooth_run(bottom, uvw, width, lowest=False)
         margin.append(_overlap(top, bottom, uvw))
         lower.append(bottom)
-    return LidRims(origin, axes, width, tuple(upper), tuple(lower), tuple(margin))
+    return LidRims(origin, axes, width, tuple(upper), tuple(lower), tuple(margin), upper_seen, lower_seen)
 
 
 def eyeball_sphere(
@@ -660,27 +669,27 @@ def closing_weights(
     low = np.column_stack(
         lower_line(rims.uvw(vertices[lower]), LID_BRIDGE_REL * rims.width, LID_COLUMN_REL * rims.width)
     )  # (j, 2)
-    p = vertices[margin]  # (k, 3)
     turn = _rotation_x(closed_rad)
-    swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
-    budget = out[margin, lid] + out[margin, head]
-    # the sculptor keeps a lid vertex clear of the eyeball at rest at its rest height, up to thickness
-    dist, surface = eyeball_surface(p, centre, gaze, radius)
-    height = dist - surface - clearance  # < 0: inside the eyeball at rest, never sculpted
-    keep = np.where(height >= 0, clearance + np.minimum(height, thickness), -np.inf)
 
-    def shortfall(w: np.ndarray) -> np.ndarray:
-        """How far above the lower margin (> 0) each margin vertex lands with lid weight ``w``."""
-        posed = sculpt_lids(p + w[:, None] * swing, centre, gaze, radius, keep)
-        uvw = rims.uvw(posed)
-        return uvw[:, 1] - np.interp(uvw[:, 0], low[:, 0], low[:, 1])
+    def landing(ids: np.ndarray, low: np.ndarray) -> np.ndarray:
+        """The lid weight (k,) that brings each vertex of ``ids`` onto the line ``low`` (j, 2) (u, v)
+        at the closing angle, skinned as the engines skin (sculptor included), or its whole budget."""
+        p = vertices[ids]
+        swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
+        # the sculptor keeps a lid vertex clear of the eyeball at rest at its rest height, up to thickness
+        dist, surface = eyeball_surface(p, centre, gaze, radius)
+        height = dist - surface - clearance  # < 0: inside the eyeball at rest, never sculpted
+        keep = np.where(height >= 0, clearance + np.minimum(height, thickness), -np.inf)
+        lo, hi = np.zeros(len(p)), out[ids, lid] + out[ids, head]
+        for _ in range(BISECTIONS):  # the lid comes down as its weight grows
+            mid = 0.5 * (lo + hi)
+            uvw = rims.uvw(sculpt_lids(p + mid[:, None] * swing, centre, gaze, radius, keep))
+            above = uvw[:, 1] > np.interp(uvw[:, 0], low[:, 0], low[:, 1])
+            lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+        return 0.5 * (lo + hi)
 
-    lo, hi = np.zeros(len(p)), budget.copy()
-    for _ in range(BISECTIONS):  # the lid comes down as its weight grows
-        mid = 0.5 * (lo + hi)
-        above = shortfall(mid) > 0
-        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
-    needed = 0.5 * (lo + hi)  # (k,)
+    p = vertices[margin]  # (k, 3)
+    needed = landing(margin, low)  # (k,)
     # the lid moves as its edge does: each vertex on the upper lid's side of the opening takes its
     # column's closing weight times its share of the margin's motion, which falls with its distance
     # from the margin along the skin (``lid_profile``: the skin of the lid, and the lid's inner
@@ -699,6 +708,16 @@ def closing_weights(
     want = np.clip(np.maximum(closing(t), np.interp(t, u[order], needed[order])), 0.0, None)
     total = out[ids, lid] + out[ids, head]  # a vertex the head bone does not weight only gives
     new = np.minimum(share[ids] * want, total)
+    # what the front sees of the upper margin never closes past what it sees of the lower (on a slit
+    # of an eye the regions' rims are the margins, and a canthus's rim deep behind them needs more)
+    seen = np.flatnonzero(np.isin(ids, rims.upper_seen))
+    if len(seen) and len(rims.lower_seen) >= MIN_MARGIN:
+        seen_low = np.column_stack(
+            lower_line(
+                rims.uvw(vertices[rims.lower_seen]), LID_BRIDGE_REL * rims.width, LID_COLUMN_REL * rims.width
+            )
+        )
+        new[seen] = np.minimum(new[seen], landing(ids[seen], seen_low))
     given = out[ids, lid] - new
     out[ids, lid], out[ids, head] = new, total - new
     # where the head bone did not weight a vertex its other bones share what the lid gives, so no
