@@ -664,11 +664,15 @@ def closing_weights(
     if rims is None or len(rims.upper_margin[0]) < MIN_MARGIN or len(rims.lower[0]) < MIN_MARGIN:
         return out
     margin, lower = rims.upper_margin[0], rims.lower[0]
-    # the line the contact stops the lid on: aiming below it (into a corner's wall) the contact opens
-    # the column again, and its neighbours with it
-    low = np.column_stack(
-        lower_line(rims.uvw(vertices[lower]), LID_BRIDGE_REL * rims.width, LID_COLUMN_REL * rims.width)
-    )  # (j, 2)
+
+    def line(ids: np.ndarray) -> np.ndarray:
+        """The line (j, 2) (u, v) the contact stops the lid on over the lower margin ``ids``: aiming
+        below it (into a corner's wall) the contact opens the column again, and its neighbours too."""
+        return np.column_stack(
+            lower_line(rims.uvw(vertices[ids]), LID_BRIDGE_REL * rims.width, LID_COLUMN_REL * rims.width)
+        )
+
+    low = line(lower)
     turn = _rotation_x(closed_rad)
 
     def landing(ids: np.ndarray, low: np.ndarray) -> np.ndarray:
@@ -712,12 +716,7 @@ def closing_weights(
     # of an eye the regions' rims are the margins, and a canthus's rim deep behind them needs more)
     seen = np.flatnonzero(np.isin(ids, rims.upper_seen))
     if len(seen) and len(rims.lower_seen) >= MIN_MARGIN:
-        seen_low = np.column_stack(
-            lower_line(
-                rims.uvw(vertices[rims.lower_seen]), LID_BRIDGE_REL * rims.width, LID_COLUMN_REL * rims.width
-            )
-        )
-        new[seen] = np.minimum(new[seen], landing(ids[seen], seen_low))
+        new[seen] = np.minimum(new[seen], landing(ids[seen], line(rims.lower_seen)))
     given = out[ids, lid] - new
     out[ids, lid], out[ids, head] = new, total - new
     # where the head bone did not weight a vertex its other bones share what the lid gives, so no
