@@ -114,16 +114,21 @@ def widest_at_icts_jaw_drop(rig, ict, faces: np.ndarray) -> float:
     return edge_stretch(rest, match.vertices, faces).widest
 
 
+def closed_lid_gaps(rig):
+    """Each eye's ``LidGap`` (L, R) with both upper lids at their channel's maximum (wire engine)."""
+    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
+
+    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
+    return [lid_gap(find_lid_margins(rig, side), closed) for side in "LR"]
+
+
 def test_tall_eyes_close_at_the_lids_maximum():
     """An identity at σ 2 whose openings are ~1.5 cm tall (ICT's: 1 cm): turning about the eye's
     centre, the lid channel's maximum left the upper lids 0.4 cm short; the pivot is set back
     (``lids.closing_pivot``) until they meet."""
-    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
-
     rig = identity_rig(102, 2.0)
-    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
-    for side in "LR":
-        assert lid_gap(find_lid_margins(rig, side), closed).largest < 0.1  # cm
+    for side, gap in zip("LR", closed_lid_gaps(rig), strict=True):
+        assert gap.largest < 0.1  # cm
         eye, lid = rig.bone(f"eye_{side}"), rig.bone(f"eyelid_upper_{side}")
         assert (lid.head - eye.head)[2] < -0.1  # set back behind the eye's centre (cm)
 
@@ -226,12 +231,7 @@ def test_lids_that_sink_toward_the_eyeball_still_close():
     as well as the sclera: larger than the sclera's), was taken for a skirt tucked inside the
     eyeball, and kept a third of its neighbours' closing weight: the closed lid stood 0.7 cm open in
     a tent over it. A rim vertex is tucked only inside the sclera's sphere as well."""
-    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
-
-    rig = identity_rig(129, 2.0)
-    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
-    for side in "LR":
-        gap = lid_gap(find_lid_margins(rig, side), closed)
+    for gap in closed_lid_gaps(identity_rig(129, 2.0)):
         assert gap.smallest > -0.01 and gap.largest <= 0.1  # cm
 
 
@@ -241,10 +241,5 @@ def test_what_the_front_sees_of_the_upper_lid_never_closes_past_the_lower():
     in the inner canthus took the upper margin's place there. The closing weight it needed took the
     margin a viewer sees 0.44 cm past the lower lid. That margin is now held at the lower margin the
     front sees (``closing_weights``); the right eye was never in question."""
-    from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
-
-    rig = identity_rig(121, 3.0)
-    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
-    for side in "LR":
-        gap = lid_gap(find_lid_margins(rig, side), closed)
+    for gap in closed_lid_gaps(identity_rig(121, 3.0)):
         assert gap.smallest > -0.01 and gap.largest < 0.25  # cm: no crossing; 0.18 open at most

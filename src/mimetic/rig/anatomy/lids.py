@@ -385,9 +385,10 @@ def lid_rims(
     inside = (uvw[lids, 0] > lo) & (uvw[lids, 0] < hi)
     lids = lids[in_front & inside]
     is_tucked = np.zeros(len(vertices), dtype=bool)
-    is_tucked[lids] = True
-    for ball_centre, ball_radius in ((centre, radius), sclera or (centre, radius)):
-        is_tucked[lids] &= np.linalg.norm(vertices[lids] - ball_centre, axis=1) < TUCKED_REL * ball_radius
+    balls = [(centre, radius)] if sclera is None else [(centre, radius), sclera]
+    is_tucked[lids] = np.all(
+        [np.linalg.norm(vertices[lids] - c, axis=1) < TUCKED_REL * r for c, r in balls], axis=0
+    )
     # the rims: where the lid ends or turns away along the gaze, or (visible layer) meets the skirt
     edges = edges_unique(faces)
     next_to_tucked = np.zeros(len(vertices), dtype=bool)
