@@ -6,11 +6,12 @@ Conventions (right-handed, +Y up, +Z forward; angles in radians, positive as nam
   ``jaw_slide`` and ``jaw_protrude`` translate it along +X and +Z by a fraction of the head height.
 * ``eyelid_upper_*`` > 0 closes the upper lid (rotation about +X through the eye centre); its
   maximum is the angle that closes the eye;
-  ``eyelid_lower_*`` > 0 raises the lower lid (rotation about -X). The upper lid follows half of
-  the gaze pitch and the lower lid a fifth of it, and both lids half of their eye's yaw (they ride
-  the cornea), as real lids do. The levator palpebrae and the
-  orbicularis oculi act on the lids through these bones (``LID_MUSCLES``), as in the thesis's rig,
-  where the lids are bones.
+  ``eyelid_lower_*`` > 0 raises the lower lid (rotation about -X). The lids and the skin around
+  them follow their eye's turn by a soft field (``mimetic.rig.anatomy.gaze``: half the turn at its
+  centre, fading over an eye width), and the upper lid's plate follows a further
+  ``LID_FOLLOWS_GAZE`` of the pitch, so its margin rides the cornea down about half-way as a real
+  lid does. The levator palpebrae and the orbicularis oculi act on the lids through these bones
+  (``LID_MUSCLES``), as in the thesis's rig, where the lids are bones.
 * ``gaze_yaw`` > 0 turns both eyes to the subject's left (+X), ``gaze_pitch`` > 0 looks up,
   ``gaze_convergence`` turns each eye toward the nose by half its value (< 0: a slight divergence,
   so one eye can turn out while the other stays).
@@ -29,8 +30,10 @@ from mimetic.rig.model import Rig
 
 IDENTITY = np.eye(4)
 IDENTITY.setflags(write=False)
-LID_FOLLOWS_GAZE = (0.5, 0.2)  # upper, lower lid rotation per radian of gaze pitch
-LID_FOLLOWS_YAW = 0.5  # lid rotation about the vertical per radian of the eye's yaw (they ride the cornea)
+LID_FOLLOWS_GAZE = (0.15, 0.0)
+"""Upper, lower lid plate rotation per radian of gaze pitch, on top of the soft field (which turns the
+margins about 0.35 rad per rad): with it the margins move as much as the plates' (0.5, 0.2) alone did
+before the field, looked at in up- and down-gaze on ICT."""
 # muscles that move the lids through the lid bones: (upper, lower) closing rotation per unit
 # activation, as a fraction of the upper lid's full closing angle (the eyelid_upper channel's maximum)
 LID_MUSCLES = {
@@ -92,13 +95,8 @@ def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
             upper += up * closing * ch(f"{muscle}_{side}")
             lower += low * closing * ch(f"{muscle}_{side}")
         yaw = ch("gaze_yaw") + sign * 0.5 * ch("gaze_convergence")
-        follow = rotation_y(LID_FOLLOWS_YAW * yaw)
-        local[f"eyelid_upper_{side}"] = about(
-            follow @ rotation_x(upper), rig.bone(f"eyelid_upper_{side}").head
-        )
-        local[f"eyelid_lower_{side}"] = about(
-            follow @ rotation_x(-lower), rig.bone(f"eyelid_lower_{side}").head
-        )
+        local[f"eyelid_upper_{side}"] = about(rotation_x(upper), rig.bone(f"eyelid_upper_{side}").head)
+        local[f"eyelid_lower_{side}"] = about(rotation_x(-lower), rig.bone(f"eyelid_lower_{side}").head)
         local[f"eye_{side}"] = about(rotation_y(yaw) @ rotation_x(-pitch), centre)
     out = np.empty((len(rig.bones), 4, 4))
     for k, bone in enumerate(rig.bones):

@@ -8,10 +8,10 @@ fat up, air pressure puffs the cheeks, the marginal orbicularis oris rolls the l
 peripheral part pushes them out into a funnel, the lips slide sideways together, the nasalis draws
 the side of the nose up, the levator of the nose wrinkles and lifts its side, and the tongue pokes
 out, lifts its tip or draws back. The small muscles of the brow's head and of the nose's tip, wing
-and side move fields sized by their feature instead of the head (``local``); ``find_actions`` builds
-both kinds.
+and side move fields sized by their feature instead of the head (``local``), and the skin around
+each eye turns with its gaze (``gaze``); ``find_actions`` builds them all.
 
-Each is an ``Action``: a displacement field over the rest surface, linear in one channel and added
+Each is an ``Action``: a displacement field over the rest surface, linear in its channels and added
 before skinning (as the creases are), so it bakes exactly and follows the jaw it rides on. Two
 kinds build them from the rig's own landmarks and normals, in fractions of the head height:
 
@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mimetic.rig.anatomy.creases import Crease
+from mimetic.rig.anatomy.gaze import gaze_follow_actions
 from mimetic.rig.anatomy.local import CHANNELS as LOCAL_CHANNELS
 from mimetic.rig.anatomy.local import LOCAL_BUMPS, MIN_WEIGHT, local_actions
 
@@ -430,8 +431,8 @@ def find_actions(
     channel_names: Iterable[str],
     scale: float,
 ) -> tuple[Action, ...]:
-    """Every tissue action of a rig: ``BUMPS``, ``ROLLS``, the feature-local ``local.LOCAL_BUMPS`` and
-    the tongue's, for the channels it has.
+    """Every tissue action of a rig: ``BUMPS``, ``ROLLS``, the feature-local ``local.LOCAL_BUMPS``, the
+    tongue's and the gaze's (``gaze.gaze_follow_actions``), for the channels it has.
 
     ``vertices``/``normals`` (n, 3) are the rest mesh (rig units); ``skin`` (s,) the vertices the
     face's tissue actions may move, ``tongue`` (t,) the tongue's (may be empty); ``scale`` the head
@@ -455,4 +456,5 @@ def find_actions(
     for local in LOCAL_BUMPS:
         out += local_actions(surface, local, channels)
     out += tongue_actions(surface, tongue, channels)
+    out += gaze_follow_actions(surface, channels)
     return tuple(a for a in out if len(a.vertices))
