@@ -12,9 +12,9 @@ those shapes to 54–61 %.
 about the vertical (yaw) or the horizontal (pitch) through the eyeball's centre by
 ``GAZE_SKIN_FOLLOW`` of the eye's turn times a bump ``local.local_weights`` (whole at its centre, 0
 at its reach), linearised. Each eye's yaw is ``gaze_yaw`` plus or minus half of
-``gaze_convergence`` (``engines.skinning``), so the yaw action's gains are those. The lid bones
-still follow the pitch (the upper margin rides the cornea down); this field adds the skin around
-them. Everything is sized by the eye's own width, inner to outer canthus
+``gaze_convergence`` (``engines.skinning``), so the yaw action's gains are those. The upper lid's
+bone follows a little more of the pitch (``skinning.LID_FOLLOWS_GAZE``), so its margin rides the
+cornea down about half-way. Everything is sized by the eye's own width, inner to outer canthus
 (``local.feature_widths``), so it carries to every head.
 
 Fitted as a mechanism (place, reach, pivot; not as shapes) on ICT's neutral and its identity s1 σ1
@@ -22,7 +22,7 @@ with the rest of the rig in place (free least squares of ICT's eight ``eyeLook``
 basis plus the yaw field: mean residual 47.6 → 33.9 % on the neutral, 34.1 % on s1 σ1, against
 41.6 % with the same field centred between the corners and 45 % for a plain sideways slide; 31 %
 with the pitch field too). The amount it follows is not fitted (ICT's eyeballs do not turn in its
-shapes): half the eye's turn at the centre, as the lid bones' pitch follow.
+shapes): half the eye's turn at the centre, what the lid plates followed of the pitch before.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from mimetic.rig.anatomy.actions import Surface
 
 GAZE_SKIN_FOLLOW = 0.5
-"""How far the skin at the field's centre turns with its eye, rad per rad of the eye's yaw (the lid
+"""How far the skin at the field's centre turns with its eye, rad per rad of the eye's turn (the lid
 margins, a little off the centre, follow about a third: a few millimetres at a full look aside)."""
 GAZE_SKIN_CENTRE = (0.2, 0.0, 0.0)
 """The field's centre from the midpoint of the eye's corners, × the eye width; x toward the outer
