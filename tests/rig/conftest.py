@@ -15,8 +15,11 @@ import pytest
 import scipy.sparse as sp
 import trimesh
 
+from mimetic.engines import make_engine
 from mimetic.mesh.model import Mesh, SurfacePoint
+from mimetic.rig.activations import pose
 from mimetic.rig.model import Bone, Channel, Muscle, Rig, Wire
+from mimetic.testing import small_rig
 
 HEAD_RADIUS_MM = 100.0
 
@@ -159,3 +162,17 @@ def rig() -> Rig:
 def rig_builder():
     """``make_rig`` itself, for tests that vary its arguments."""
     return make_rig
+
+
+MOVING_HEADS = (None, 1, 2)
+"""The default generated head and two random ones (``HeadParams.random(seed)``)."""
+
+
+@pytest.fixture(scope="module", params=MOVING_HEADS, ids=lambda s: "default" if s is None else f"random{s}")
+def case(request):
+    """(rig, rest vertices, motion(values) -> (n, 3)) for one generated head, through the wire engine:
+    ``motion({channel: value})`` is the displacement from rest at that pose."""
+    rig = small_rig(request.param)
+    engine = make_engine(rig, "wire")
+    rest = engine.deform(pose(rig))
+    return rig, rest, lambda values: engine.deform(pose(rig, values)) - rest

@@ -1,25 +1,10 @@
 """Tests for mimetic.rig.anatomy.gaze: the skin around each eye turns with it, the outer corner more
-than the inner, and nothing beyond the orbit moves; on the default head and on random heads."""
+than the inner, and nothing beyond the orbit moves; on the default head and on random heads
+(``case``, from conftest)."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
-
-from mimetic.engines import make_engine
-from mimetic.rig.activations import pose
-from mimetic.testing import small_rig
-
-HEADS = (None, 1, 2)
-
-
-@pytest.fixture(scope="module", params=HEADS, ids=lambda s: "default" if s is None else f"random{s}")
-def case(request):
-    """(rig, rest vertices, motion(values) -> (n, 3)) for one head, through the wire engine."""
-    rig = small_rig(request.param)
-    engine = make_engine(rig, "wire")
-    rest = engine.deform(pose(rig))
-    return rig, rest, lambda values: engine.deform(pose(rig, values)) - rest
 
 
 def _skin_near_eye(rig, side: str) -> tuple[np.ndarray, np.ndarray]:

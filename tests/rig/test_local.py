@@ -1,5 +1,5 @@
 """Tests for mimetic.rig.anatomy.local: feature-local actions move their feature, the right way, and
-nothing far from it, on the default head and on random heads."""
+nothing far from it, on the default head and on random heads (``case``, from conftest)."""
 
 from __future__ import annotations
 
@@ -10,22 +10,6 @@ from mimetic.engines import make_engine
 from mimetic.rig.activations import pose
 from mimetic.rig.anatomy.local import CHANNELS, LOCAL_BUMPS, local_weights
 from mimetic.testing import small_head, small_rig
-
-HEADS = (None, 1, 2)
-"""The default head and two random ones (``HeadParams.random(seed)``)."""
-
-
-@pytest.fixture(scope="module", params=HEADS, ids=lambda s: "default" if s is None else f"random{s}")
-def case(request):
-    """(rig, rest vertices, motion(channel) -> (n, 3)) for one head, through the wire engine."""
-    rig = small_rig(request.param)
-    engine = make_engine(rig, "wire")
-    rest = engine.deform(pose(rig))
-
-    def motion(values: dict) -> np.ndarray:
-        return engine.deform(pose(rig, values)) - rest
-
-    return rig, rest, motion
 
 
 def _at(rig, vertices, name: str) -> np.ndarray:
