@@ -44,7 +44,8 @@ c. Lids: margins from ``find_lid_margins`` (MediaPipe's mask has none: skipped);
 d. Fidelity: ICT's 53 expression shapes fitted on the baked rig (``bake(engine).basis``) over ICT's
    face (vertices 0..9408), ``expression_fidelity``: median and worst per head and engine. ICT auto
    (wire, vector), ICT file (wire; both engines in the full run), and identity heads (automatic
-   landmarks; full: 8 heads, seeds 1-5 at σ 1 and 1-3 at σ 2, both engines; --quick: 2, wire).
+   landmarks; full: 14 heads, calibration seeds 1-5 at σ 1 and 1-3 at σ 2 and check seeds 101-106 at
+   σ 1, 2, 3 in turn, both engines; --quick: s1 σ 1, s1 σ 2, s101 σ 1, s102 σ 2, wire).
    Targets: ICT auto median ≤ 30 % and every shape ≤ 60 %; identity medians within 5 points of ICT
    auto's (same engine).
 e. Fidelity per shape (ICT file and auto, each engine run).
@@ -133,8 +134,15 @@ ICT_FACE = slice(0, 9409)
 BAKE_SAMPLES = 2  # the basis does not depend on it; only bake's own error report does
 TABLE_IDENTITIES = ((1, 1.0), (2, 1.0), (1, 2.0))
 QUICK_TABLE_IDENTITIES = ((1, 1.0), (1, 2.0))
-FIDELITY_IDENTITIES = tuple((s, 1.0) for s in range(1, 6)) + tuple((s, 2.0) for s in range(1, 4))
-QUICK_FIDELITY_IDENTITIES = ((1, 1.0), (1, 2.0))
+FIDELITY_IDENTITIES = (
+    tuple((s, 1.0) for s in range(1, 6))
+    + tuple((s, 2.0) for s in range(1, 4))
+    + ((101, 1.0), (102, 2.0), (103, 3.0), (104, 1.0), (105, 2.0), (106, 3.0))
+)
+QUICK_FIDELITY_IDENTITIES = ((1, 1.0), (1, 2.0), (101, 1.0), (102, 2.0))
+CHECK_SEEDS = range(101, 151)
+"""Identities no constant was chosen on (``sweep_motion.py``'s check heads); the others (and ICT's
+neutral) are calibration heads."""
 GENERATED_SEEDS = (None, 1, 2)
 QUICK_GENERATED_SEEDS = (None, 1)
 
@@ -526,9 +534,11 @@ def tables_de(heads: Heads, quick: bool) -> None:
             base, diff = f"ICT auto {pct(reference[0].median)}", f"{points:+.1f}"
         else:
             ok, base, diff = None, "", ""
+        group = "check" if any(name.startswith(f"ICT id s{seed} ") for seed in CHECK_SEEDS) else "calibration"
         rows.append(
             (
                 name,
+                group,
                 engine_name,
                 pct(result.median),
                 f"{pct(result.worst)} ({result.worst_name})",
@@ -547,6 +557,7 @@ def tables_de(heads: Heads, quick: bool) -> None:
         f"(automatic landmarks) within {GOAL_IDENTITY_POINTS:g} points of ICT auto's median",
         (
             "head",
+            "group",
             "engine",
             "median %",
             "worst % (shape)",
