@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -20,6 +22,7 @@ from mimetic.rig.anatomy.actions import (
     bump_actions,
     find_actions,
     roll_actions,
+    slide_onto,
     tongue_actions,
 )
 from mimetic.rig.recipe import build_rig
@@ -145,6 +148,36 @@ def test_mass_bumps_move_their_tissue_as_one_through_its_depth(rig):
     # the lips lie within 2 cm of their corners' depth, inside the 2.2 cm depth semi-axis
     lips = np.intersect1d(np.union1d(rig.regions["upper_lip"], rig.regions["lower_lip"]), surface.skin)
     assert np.isin(lips, a.vertices[whole]).all()
+
+
+def test_plane_bumps_follow_the_forehead_back_and_reach_farther_on_their_long_side(rig):
+    """A sheet over the frontal bone (``plane``): its weights fall off in the face plane, so the
+    skin high on the forehead, which curves back, moves as the brow does; its motion slides along
+    the skin; ``radii_plus_rel`` reaches away from the midline and upward, ``radii_rel`` the other
+    way, and each side mirrors the other."""
+    surface = _surface(rig)
+    radii, plus = (0.05, 0.05, 0.1), (0.15, 0.15, 0.1)
+    sheet = Bump("s", "frontalis_outer", "brow_outer_mid", (0, 0, 0), radii, (0, 0.02, 0), 0.0, plane=True,
+                 radii_plus_rel=plus)  # fmt: skip
+    left, right = bump_actions(surface, sheet, {"frontalis_outer_L", "frontalis_outer_R"})
+    n = surface.normals[left.vertices]
+    assert np.abs(np.einsum("kd,kd->k", left.offsets_rel, n)).max() < 1e-12  # slid onto the skin
+    centre = surface.landmark("brow_outer_mid_L")
+    d = (surface.vertices[left.vertices] - centre) / rig.scale
+    w = np.linalg.norm(left.offsets_rel, axis=1) / np.linalg.norm(slide_onto([0, 0.02, 0], n), axis=1)
+    rel = d[:, :2] / np.where(d[:, :2] < 0, radii[:2], plus[:2])
+    whole = np.abs(d[:, 2]) <= radii[2]
+    np.testing.assert_allclose(w[whole], (1 - (rel[whole] ** 2).sum(1)) ** 2, rtol=1e-9)
+    # three times farther up and out than down and in
+    assert d[:, 1].max() > 2.5 * -d[:, 1].min() and d[:, 0].max() > 2.5 * -d[:, 0].min()
+    # the forehead 1.5 cm and more above the brow recedes: the sheet moves it, an ellipsoid would not
+    high = d[:, 1] > 0.07
+    assert high.sum() >= 5 and (d[high, 2] < 0).all()
+    (ellipsoid,) = bump_actions(surface, replace(sheet, plane=False), {"frontalis_outer_L"})
+    moved = np.linalg.norm(ellipsoid.offsets_rel, axis=1)[np.isin(ellipsoid.vertices, left.vertices[high])]
+    assert moved.sum() < 0.5 * np.linalg.norm(left.offsets_rel[high], axis=1).sum()
+    mirrored = surface.vertices[right.vertices] - surface.landmark("brow_outer_mid_R")
+    assert mirrored[:, 0].min() < -2.5 * mirrored[:, 0].max()  # the right sheet reaches out to −x
 
 
 def test_roll_actions_turn_the_lip_about_its_pivot(rig):

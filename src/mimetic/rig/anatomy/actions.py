@@ -60,7 +60,8 @@ class Bump:
     centre_rel : (3,) float
         Bump centre from the anchor, × head height; x points to the bump's own side (mirrored).
     radii_rel : (3,) float
-        Semi-axes along x, y, z, × head height.
+        Semi-axes along x, y, z, × head height (toward the midline, below and behind the centre when
+        ``radii_plus_rel`` is given).
     slide_rel : (3,) float
         Motion at the bump's centre at full activation, × head height, slid onto the surface (a
         ``mass`` moves by it unslid); x to the bump's own side.
@@ -74,6 +75,13 @@ class Bump:
         ``radii_rel[2]`` (``_bump_weights``), so the mass moves through its depth as one: where the
         lips fold into the mouth their inner faces move as their outer ones do instead of shearing
         past them or being overtaken from behind.
+    plane : bool
+        A sheet over a curved bone (the forehead): the bump falls off in the face plane and is whole
+        through its depth as a mass's is, so it follows the forehead back as it curves up and away,
+        but its motion is slid onto the surface.
+    radii_plus_rel : (3,) float or None
+        Semi-axes away from the midline, above and in front of the centre (× head height), for a bump
+        that reaches farther on one side than the other; ``None``: ``radii_rel`` on both.
     """
 
     name: str
@@ -85,6 +93,8 @@ class Bump:
     bulge_rel: float
     sided: bool = True
     mass: bool = False
+    plane: bool = False
+    radii_plus_rel: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -122,25 +132,29 @@ class Surface:
 BUMPS: tuple[Bump, ...] = (
     # (name, channel, anchor, centre_rel, radii_rel, slide_rel, bulge_rel[, sided, mass]), see ``Bump``
     # the upper face: the frontalis sheet, the brow depressors, the cheek raiser, the lower lid
-    # browInnerUp: the inner forehead rises with the brow
+    # browInnerUp: the inner forehead rises with the brow, a sheet over the frontal bone
     Bump(
         "frontalis_sheet_inner",
         "frontalis_inner",
         "brow_inner_mid",
-        (-0.0289, -0.0022, -0.0042),
-        (0.165, 0.3, 0.0551),
-        (0.0073, 0.0087, 0.0091),
-        0.008,
+        (-0.0402, 0.0727, 0.0483),
+        (0.1855, 0.3727, 0.056),
+        (0.0047, 0.0098, -0.0069),
+        0.0069,
+        plane=True,
+        radii_plus_rel=(0.2183, 0.0888, 0.056),
     ),
-    # browOuterUp: the outer brow and the forehead above it rise
+    # browOuterUp: the outer brow and the forehead above and beside it rise
     Bump(
         "frontalis_sheet_outer",
         "frontalis_outer",
         "brow_outer_mid",
-        (0.0104, 0.0067, 0.0416),
-        (0.3, 0.1658, 0.3),
-        (0.0094, 0.0251, -0.0106),
-        0.0013,
+        (0.2078, 0.0699, 0.2285),
+        (0.4762, 0.246, 0.2599),
+        (0.0132, 0.0307, -0.0115),
+        0.0039,
+        plane=True,
+        radii_plus_rel=(0.6, 0.1316, 0.2599),
     ),
     # browDown: the brow draws down, in and forward over the eye
     Bump(
@@ -285,13 +299,24 @@ ROLLS: tuple[Roll, ...] = (
 
 
 def _bump_weights(
-    surface: Surface, centre: np.ndarray, radii_rel, ids: np.ndarray, *, mass: bool = False
+    surface: Surface,
+    centre: np.ndarray,
+    radii_rel,
+    ids: np.ndarray,
+    *,
+    mass: bool = False,
+    radii_plus_rel=None,
+    sx: float = 1.0,
 ) -> tuple:
     """Vertices (k,) among ``ids`` and weights (k,) in (0, 1] of the bump ``(1 − r²)²`` around ``centre``
-    (``r`` over the semi-axes ``radii_rel``). A ``mass`` bump measures ``r`` in the face plane (x, y)
-    and is whole through its depth out to its depth semi-axis, fading to 0 at twice that (a
-    smoothstep in ``|z − centre_z|``)."""
-    r = (surface.vertices[ids] - centre) / (np.asarray(radii_rel, dtype=np.float64) * surface.scale)
+    (``r`` over the semi-axes ``radii_rel``; over ``radii_plus_rel`` away from the midline, above and
+    in front when given, ``sx`` +1 on the subject's left and −1 on the right). A ``mass`` bump
+    measures ``r`` in the face plane (x, y) and is whole through its depth out to its depth
+    semi-axis, fading to 0 at twice that (a smoothstep in ``|z − centre_z|``)."""
+    d = (surface.vertices[ids] - centre) * np.array([sx, 1.0, 1.0])
+    minus = np.asarray(radii_rel, dtype=np.float64)
+    plus = minus if radii_plus_rel is None else np.asarray(radii_plus_rel, dtype=np.float64)
+    r = d / (np.where(d < 0.0, minus, plus) * surface.scale)
     depth = np.ones(len(ids))
     if mass:
         t = np.clip(np.abs(r[:, 2]) - 1.0, 0.0, 1.0)
@@ -321,7 +346,15 @@ def bump_actions(surface: Surface, bump: Bump, channels: Iterable[str]) -> list[
             continue
         mirror = np.array([sx, 1.0, 1.0])
         centre = surface.landmark(anchor) + np.asarray(bump.centre_rel) * mirror * surface.scale
-        ids, w = _bump_weights(surface, centre, bump.radii_rel, surface.skin, mass=bump.mass)
+        ids, w = _bump_weights(
+            surface,
+            centre,
+            bump.radii_rel,
+            surface.skin,
+            mass=bump.mass or bump.plane,
+            radii_plus_rel=bump.radii_plus_rel,
+            sx=sx,
+        )
         normals = surface.normals[ids]
         motion = np.asarray(bump.slide_rel) * mirror
         slide = np.broadcast_to(motion, normals.shape) if bump.mass else slide_onto(motion, normals)
