@@ -156,35 +156,51 @@ BUMPS: tuple[Bump, ...] = (
         plane=True,
         radii_plus_rel=(0.6, 0.1316, 0.2599),
     ),
-    # browDown: the brow draws down, in and forward over the eye
+    # browDown: the brow and the forehead above it draw down, in and forward over the eye
     Bump(
         "corrugator_gather",
         "corrugator",
         "brow_inner_mid",
-        (0.095, 0.0082, -0.1058),
-        (0.3, 0.188, 0.3),
-        (-0.009, -0.0076, 0.0122),
-        0.0035,
+        (0.0997, 0.0106, 0.2215),
+        (0.3971, 0.1514, 0.3025),
+        (-0.002, -0.0059, 0.0193),
+        0.0026,
+        plane=True,
+        radii_plus_rel=(0.6, 0.35, 0.3025),
     ),
-    # cheekSquint (AU6): the cheek rises toward the eye
+    # cheekSquint (AU6): the cheek rises toward the eye, most under the eye and less down to the jaw
     Bump(
         "cheek_raise",
         "orbicularis_oculi_outer",
         "eye_outer_corner",
-        (-0.0045, -0.1915, -0.1096),
-        (0.1916, 0.28, 0.2732),
-        (-0.007, 0.0348, 0.0195),
-        0.0084,
+        (0.0293, -0.1665, -0.1152),
+        (0.2066, 0.4585, 0.2579),
+        (0.0011, 0.0237, 0.0209),
+        0.0078,
+        radii_plus_rel=(0.1804, 0.2027, 0.3602),
     ),
     # eyeSquint: the lower lid and the skin under it bunch up and in
     Bump(
         "lower_lid_squint",
         "orbicularis_oculi",
         "eye_lower_lid",
-        (-0.0013, -0.0576, -0.0049),
-        (0.15, 0.1054, 0.1434),
-        (-0.0392, 0.0193, -0.003),
-        -0.0008,
+        (-0.0342, -0.0561, -0.0234),
+        (0.1047, 0.1791, 0.6),
+        (-0.0445, 0.0138, -0.008),
+        -0.0153,
+        radii_plus_rel=(0.2088, 0.093, 0.0944),
+    ),
+    # eyeWide: the skin between the lid's margin and its fold drawn up with the lid (the levator)
+    Bump(
+        "lid_fold_lift",
+        "levator_palpebrae",
+        "eye_upper_lid",
+        (-0.0031, 0.0039, -0.0417),
+        (0.1295, 0.0621, 0.0384),
+        (0.001, 0.0103, 0.0033),
+        -0.0047,
+        plane=True,
+        radii_plus_rel=(0.1142, 0.0563, 0.0384),
     ),
     # the mid face: the nose's side, the malar fat in a smile, the dimple, the cheek under pressure
     # noseSneer: the side of the nose and the cheek beside it rise
@@ -214,11 +230,61 @@ BUMPS: tuple[Bump, ...] = (
         "dimple",
         "buccinator",
         "mouth_corner",
-        (-0.0011, -0.0452, 0.003),
-        (0.0861, 0.1227, 0.1),
-        (0.0018, 0.0206, -0.0272),
-        0.0054,
+        (0.0155, -0.0385, -0.0266),
+        (0.0876, 0.17, 0.0786),
+        (-0.0102, 0.032, -0.0268),
+        0.0069,
         mass=True,
+        radii_plus_rel=(0.1126, 0.1209, 0.0786),
+    ),
+    # mouthFrown: the corner and a band of the cheek beside it drawn down (the triangularis)
+    Bump(
+        "corner_down",
+        "triangularis",
+        "mouth_corner",
+        (0.0509, -0.0059, -0.0219),
+        (0.1078, 0.6, 0.0731),
+        (0.0041, -0.0112, 0.0034),
+        -0.0029,
+        mass=True,
+        radii_plus_rel=(0.1822, 0.35, 0.0731),
+    ),
+    # mouthStretch: the corner drawn out, down and back (the risorius)
+    Bump(
+        "corner_stretch",
+        "risorius",
+        "mouth_corner",
+        (0.0081, 0.0043, 0.0),
+        (0.0587, 0.0631, 0.1),
+        (0.0136, -0.0131, -0.01),
+        -0.0041,
+        mass=True,
+        radii_plus_rel=(0.0727, 0.0928, 0.1),
+    ),
+    # mouthShrugLower: the chin boss pushed up and the lower lip out over it (the mentalis)
+    Bump(
+        "chin_raise",
+        "mentalis",
+        "pogonion",
+        (0.0, 0.0134, -0.0303),
+        (0.6, 0.121, 0.0289),
+        (0.0, 0.0268, 0.0038),
+        -0.0071,
+        sided=False,
+        mass=True,
+        radii_plus_rel=(0.6, 0.1511, 0.0289),
+    ),
+    # mouthPress: the lower lip and the chin beside it pressed up and forward
+    Bump(
+        "lip_press",
+        "orbicularis_oris_incisivis",
+        "mouth_corner",
+        (-0.031, -0.1386, 0.0194),
+        (0.1453, 0.6, 0.11),
+        (-0.0038, 0.0196, 0.0084),
+        0.0055,
+        mass=True,
+        radii_plus_rel=(0.6, 0.1778, 0.11),
     ),
     # cheekPuff: air pushes the cheek and the lips out
     Bump(
@@ -271,7 +337,10 @@ BUMPS: tuple[Bump, ...] = (
     ),
 )
 """Every bump, calibrated (with the driving channel at 1, or 0.3 for the orbicularis oculi as ARKit's
-eyeSquint drives it) against the ICT-FaceKit shape named in its comment."""
+eyeSquint drives it, 0.6 for the incisivis as its mouthPress does) against the ICT-FaceKit shape named
+in its comment, with the rest of the rig in place. The brows', cheek's, lower lid's, dimple's and the
+corner's and chin's bumps (place, one-sided reaches, motion) were fitted on ICT's neutral and its
+identity s1 σ1 and checked on identities s101 σ1, s102 σ2 and s105 σ2 (``docs/benchmarks.md``)."""
 
 ROLLS: tuple[Roll, ...] = (
     # mouthRollUpper: the lip rolls in over the teeth
