@@ -15,18 +15,20 @@ Each is an ``Action``: a displacement field over the rest surface, linear in its
 before skinning (as the creases are), so it bakes exactly and follows the jaw it rides on. Two
 kinds build them from the rig's own landmarks and normals, in fractions of the head height:
 
-* ``Bump``: a smooth ellipsoidal bump ``w = (1 − r²)²`` placed from a landmark, moving its tissue
-  by a vector slid onto the surface (a sheet sliding over the bone: the forehead, the brows) or,
-  for a mass (the lips, the cheek's fat, the side of the nose), by the same vector everywhere and
-  whole through its depth, plus a bulge along the normal;
+* ``Bump``: a smooth ellipsoidal bump ``w = (1 − r²)²`` placed from a landmark, reaching farther
+  on one side than the other where the tissue does, moving its tissue by a vector slid onto the
+  surface (a sheet sliding over the bone: the forehead, the brows; over the forehead it falls off
+  in the face plane, so it follows the brow's skin as it curves back) or, for a mass (the lips, the
+  cheek's fat, the side of the nose, the chin), by the same vector everywhere and whole through its
+  depth, plus a bulge along the normal;
 * ``Roll``: a lip turning about a horizontal line behind it (``θ x̂ × (p − pivot)``), weighted by a
   bump over the lip.
 
 The constants (``BUMPS``, ``ROLLS``) were calibrated as mechanisms against captured expressions
-(ICT-FaceKit's shapes: each mechanism's place, reach and amplitude, a dozen numbers, fitted on the
-neutral with the rest of the rig in place and applied to every head from its own landmarks), not as
-shapes. Reaches run up to 0.3 of the head height (6.5 cm): a cheek raise or a brow lift moves the
-whole cheek or forehead.
+(ICT-FaceKit's shapes: each mechanism's place, reach and amplitude, a dozen numbers, fitted with the
+rest of the rig in place and applied to every head from its own landmarks), not as shapes. Reaches
+run up to 0.6 of the head height on a sheet's long side (13 cm): a cheek raise or a brow lift moves
+the whole cheek or forehead.
 """
 
 from __future__ import annotations
@@ -168,16 +170,15 @@ BUMPS: tuple[Bump, ...] = (
         plane=True,
         radii_plus_rel=(0.6, 0.35, 0.3025),
     ),
-    # cheekSquint (AU6): the cheek rises toward the eye, most under the eye and less down to the jaw
+    # cheekSquint (AU6): the cheek rises toward the eye
     Bump(
         "cheek_raise",
         "orbicularis_oculi_outer",
         "eye_outer_corner",
-        (0.0293, -0.1665, -0.1152),
-        (0.2066, 0.4585, 0.2579),
-        (0.0011, 0.0237, 0.0209),
-        0.0078,
-        radii_plus_rel=(0.1804, 0.2027, 0.3602),
+        (-0.0045, -0.1915, -0.1096),
+        (0.1916, 0.28, 0.2732),
+        (-0.007, 0.0348, 0.0195),
+        0.0084,
     ),
     # eyeSquint: the lower lid and the skin under it bunch up and in
     Bump(
@@ -237,7 +238,7 @@ BUMPS: tuple[Bump, ...] = (
         mass=True,
         radii_plus_rel=(0.1126, 0.1209, 0.0786),
     ),
-    # mouthFrown: the corner and a band of the cheek beside it drawn down (the triangularis)
+    # mouthFrown: the corner and a band of the cheek beside it drawn down (the triangularis); no bulge
     Bump(
         "corner_down",
         "triangularis",
@@ -245,44 +246,32 @@ BUMPS: tuple[Bump, ...] = (
         (0.0509, -0.0059, -0.0219),
         (0.1078, 0.6, 0.0731),
         (0.0041, -0.0112, 0.0034),
-        -0.0029,
+        0.0,
         mass=True,
         radii_plus_rel=(0.1822, 0.35, 0.0731),
     ),
-    # mouthStretch: the corner drawn out, down and back (the risorius)
+    # mouthStretch: the corner drawn out, down and back (the risorius); no bulge along the normal,
+    # which pushed the two faces of the commissure's fold apart and turned them over (fear, weeping)
     Bump(
         "corner_stretch",
         "risorius",
         "mouth_corner",
-        (0.0081, 0.0043, 0.0),
-        (0.0587, 0.0631, 0.1),
-        (0.0136, -0.0131, -0.01),
-        -0.0041,
+        (0.0142, 0.0083, -0.0166),
+        (0.1, 0.1, 0.1),
+        (0.0121, -0.0174, -0.009),
+        0.0,
         mass=True,
-        radii_plus_rel=(0.0727, 0.0928, 0.1),
     ),
-    # mouthShrugLower: the chin boss pushed up and the lower lip out over it (the mentalis)
-    Bump(
-        "chin_raise",
-        "mentalis",
-        "pogonion",
-        (0.0, 0.0134, -0.0303),
-        (0.6, 0.121, 0.0289),
-        (0.0, 0.0268, 0.0038),
-        -0.0071,
-        sided=False,
-        mass=True,
-        radii_plus_rel=(0.6, 0.1511, 0.0289),
-    ),
-    # mouthPress: the lower lip and the chin beside it pressed up and forward
+    # mouthPress: the lower lip and the chin beside it pressed up and forward (0.6 of the fitted motion:
+    # the pucker's incisivis at 1 turned a sliver at the commissure over with all of it)
     Bump(
         "lip_press",
         "orbicularis_oris_incisivis",
         "mouth_corner",
         (-0.031, -0.1386, 0.0194),
         (0.1453, 0.6, 0.11),
-        (-0.0038, 0.0196, 0.0084),
-        0.0055,
+        (-0.0023, 0.0118, 0.005),
+        0.0,
         mass=True,
         radii_plus_rel=(0.6, 0.1778, 0.11),
     ),
