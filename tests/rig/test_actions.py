@@ -157,8 +157,17 @@ def test_plane_bumps_follow_the_forehead_back_and_reach_farther_on_their_long_si
     way, and each side mirrors the other."""
     surface = _surface(rig)
     radii, plus = (0.05, 0.05, 0.1), (0.15, 0.15, 0.1)
-    sheet = Bump("s", "frontalis_outer", "brow_outer_mid", (0, 0, 0), radii, (0, 0.02, 0), 0.0, plane=True,
-                 radii_plus_rel=plus)  # fmt: skip
+    sheet = Bump(
+        "s",
+        "frontalis_outer",
+        "brow_outer_mid",
+        (0, 0, 0),
+        radii,
+        (0, 0.02, 0),
+        0.0,
+        plane=True,
+        radii_plus_rel=plus,
+    )
     left, right = bump_actions(surface, sheet, {"frontalis_outer_L", "frontalis_outer_R"})
     n = surface.normals[left.vertices]
     assert np.abs(np.einsum("kd,kd->k", left.offsets_rel, n)).max() < 1e-12  # slid onto the skin

@@ -132,8 +132,9 @@ class Surface:
 
 
 BUMPS: tuple[Bump, ...] = (
-    # (name, channel, anchor, centre_rel, radii_rel, slide_rel, bulge_rel[, sided, mass]), see ``Bump``
-    # the upper face: the frontalis sheet, the brow depressors, the cheek raiser, the lower lid
+    # (name, channel, anchor, centre_rel, radii_rel, slide_rel, bulge_rel[, sided, mass, plane,
+    # radii_plus_rel]), see ``Bump``
+    # the upper face: the frontalis sheets, the brow depressors, the cheek raiser, the lids
     # browInnerUp: the inner forehead rises with the brow, a sheet over the frontal bone
     Bump(
         "frontalis_sheet_inner",
@@ -203,7 +204,8 @@ BUMPS: tuple[Bump, ...] = (
         plane=True,
         radii_plus_rel=(0.1142, 0.0563, 0.0384),
     ),
-    # the mid face: the nose's side, the malar fat in a smile, the dimple, the cheek under pressure
+    # the mid face: the nose's side, the malar fat in a smile, the dimple, the corner drawn down and
+    # out, the lower lip pressed, the chin pushed up, the cheek under pressure
     # noseSneer: the side of the nose and the cheek beside it rise
     Bump(
         "nose_side_lift",
@@ -327,9 +329,9 @@ BUMPS: tuple[Bump, ...] = (
 )
 """Every bump, calibrated (with the driving channel at 1, or 0.3 for the orbicularis oculi as ARKit's
 eyeSquint drives it, 0.6 for the incisivis as its mouthPress does) against the ICT-FaceKit shape named
-in its comment, with the rest of the rig in place. The brows', cheek's, lower lid's, dimple's and the
-corner's and chin's bumps (place, one-sided reaches, motion) were fitted on ICT's neutral and its
-identity s1 σ1 and checked on identities s101 σ1, s102 σ2 and s105 σ2 (``docs/benchmarks.md``)."""
+in its comment, with the rest of the rig in place. The brows', the lids', the dimple's, the corners',
+the lower lip's and the chin's bumps (place, one-sided reaches, motion) were fitted on ICT's neutral
+and its identity s1 σ1 and checked on identities s101 σ1, s102 σ2 and s105 σ2 (``docs/benchmarks.md``)."""
 
 ROLLS: tuple[Roll, ...] = (
     # mouthRollUpper: the lip rolls in over the teeth
