@@ -274,10 +274,10 @@ def test_the_skin_around_the_eyes_follows_the_gaze_as_icts_captured_looks_do():
 
 
 @pytest.mark.filterwarnings("ignore")
-def test_brows_mouth_corners_and_chin_move_as_icts_captured_shapes_do():
+def test_brows_lids_and_mouth_corners_move_as_icts_captured_shapes_do():
     """The frontalis and corrugator lift and lower the forehead as sheets over the bone, the levator
     lifts the skin above the lid with it, the triangularis and risorius draw the corner down and out
-    with the cheek beside it, the mentalis pushes the chin boss up (``actions.BUMPS``, fitted on
+    with the cheek beside it, the incisivis presses the lower lip up (``actions.BUMPS``, fitted on
     ICT's neutral and s1 σ1): on an identity no constant was chosen on, ICT's captured brow raise and
     lowering, eye widening, frown, stretch and lower-lip shrug are reproduced to 29-42 % (s101 σ1;
     37-56 % before these tissue actions)."""

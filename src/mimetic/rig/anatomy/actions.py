@@ -19,16 +19,16 @@ kinds build them from the rig's own landmarks and normals, in fractions of the h
   on one side than the other where the tissue does, moving its tissue by a vector slid onto the
   surface (a sheet sliding over the bone: the forehead, the brows; over the forehead it falls off
   in the face plane, so it follows the brow's skin as it curves back) or, for a mass (the lips, the
-  cheek's fat, the side of the nose, the chin), by the same vector everywhere and whole through its
-  depth, plus a bulge along the normal;
+  cheek's fat, the side of the nose, the chin beside the lower lip), by the same vector everywhere
+  and whole through its depth, plus a bulge along the normal;
 * ``Roll``: a lip turning about a horizontal line behind it (``θ x̂ × (p − pivot)``), weighted by a
   bump over the lip.
 
 The constants (``BUMPS``, ``ROLLS``) were calibrated as mechanisms against captured expressions
 (ICT-FaceKit's shapes: each mechanism's place, reach and amplitude, a dozen numbers, fitted with the
 rest of the rig in place and applied to every head from its own landmarks), not as shapes. Reaches
-run up to 0.6 of the head height on a sheet's long side (13 cm): a cheek raise or a brow lift moves
-the whole cheek or forehead.
+run up to 0.3 of the head height (6.5 cm): a cheek raise or a brow lift moves the whole cheek or
+forehead, and no muscle moves skin farther than 0.4 of it from its insertion.
 """
 
 from __future__ import annotations
@@ -141,7 +141,7 @@ BUMPS: tuple[Bump, ...] = (
         "frontalis_inner",
         "brow_inner_mid",
         (-0.0402, 0.0727, 0.0483),
-        (0.1855, 0.3727, 0.056),
+        (0.1855, 0.3, 0.056),
         (0.0047, 0.0098, -0.0069),
         0.0069,
         plane=True,
@@ -152,24 +152,24 @@ BUMPS: tuple[Bump, ...] = (
         "frontalis_sheet_outer",
         "frontalis_outer",
         "brow_outer_mid",
-        (0.2078, 0.0699, 0.2285),
-        (0.4762, 0.246, 0.2599),
-        (0.0132, 0.0307, -0.0115),
-        0.0039,
+        (0.1876, 0.0952, 0.2516),
+        (0.3, 0.3, 0.2516),
+        (0.0276, 0.0468, -0.0119),
+        0.0077,
         plane=True,
-        radii_plus_rel=(0.6, 0.1316, 0.2599),
+        radii_plus_rel=(0.3, 0.0996, 0.2516),
     ),
     # browDown: the brow and the forehead above it draw down, in and forward over the eye
     Bump(
         "corrugator_gather",
         "corrugator",
         "brow_inner_mid",
-        (0.0997, 0.0106, 0.2215),
-        (0.3971, 0.1514, 0.3025),
+        (0.0997, 0.0106, 0.0),
+        (0.3, 0.1514, 0.15),
         (-0.002, -0.0059, 0.0193),
         0.0026,
         plane=True,
-        radii_plus_rel=(0.6, 0.35, 0.3025),
+        radii_plus_rel=(0.3, 0.3, 0.15),
     ),
     # cheekSquint (AU6): the cheek rises toward the eye
     Bump(
@@ -187,7 +187,7 @@ BUMPS: tuple[Bump, ...] = (
         "orbicularis_oculi",
         "eye_lower_lid",
         (-0.0342, -0.0561, -0.0234),
-        (0.1047, 0.1791, 0.6),
+        (0.1047, 0.1791, 0.3),
         (-0.0445, 0.0138, -0.008),
         -0.0153,
         radii_plus_rel=(0.2088, 0.093, 0.0944),
@@ -205,7 +205,7 @@ BUMPS: tuple[Bump, ...] = (
         radii_plus_rel=(0.1142, 0.0563, 0.0384),
     ),
     # the mid face: the nose's side, the malar fat in a smile, the dimple, the corner drawn down and
-    # out, the lower lip pressed, the chin pushed up, the cheek under pressure
+    # out, the lower lip pressed, the cheek under pressure
     # noseSneer: the side of the nose and the cheek beside it rise
     Bump(
         "nose_side_lift",
@@ -246,11 +246,11 @@ BUMPS: tuple[Bump, ...] = (
         "triangularis",
         "mouth_corner",
         (0.0509, -0.0059, -0.0219),
-        (0.1078, 0.6, 0.0731),
+        (0.1078, 0.3, 0.0731),
         (0.0041, -0.0112, 0.0034),
         0.0,
         mass=True,
-        radii_plus_rel=(0.1822, 0.35, 0.0731),
+        radii_plus_rel=(0.1822, 0.3, 0.0731),
     ),
     # mouthStretch: the corner drawn out, down and back (the risorius); no bulge along the normal,
     # which pushed the two faces of the commissure's fold apart and turned them over (fear, weeping)
@@ -271,11 +271,11 @@ BUMPS: tuple[Bump, ...] = (
         "orbicularis_oris_incisivis",
         "mouth_corner",
         (-0.031, -0.1386, 0.0194),
-        (0.1453, 0.6, 0.11),
+        (0.1453, 0.3, 0.11),
         (-0.0023, 0.0118, 0.005),
         0.0,
         mass=True,
-        radii_plus_rel=(0.6, 0.1778, 0.11),
+        radii_plus_rel=(0.3, 0.1778, 0.11),
     ),
     # cheekPuff: air pushes the cheek and the lips out
     Bump(
@@ -329,9 +329,10 @@ BUMPS: tuple[Bump, ...] = (
 )
 """Every bump, calibrated (with the driving channel at 1, or 0.3 for the orbicularis oculi as ARKit's
 eyeSquint drives it, 0.6 for the incisivis as its mouthPress does) against the ICT-FaceKit shape named
-in its comment, with the rest of the rig in place. The brows', the lids', the dimple's, the corners',
-the lower lip's and the chin's bumps (place, one-sided reaches, motion) were fitted on ICT's neutral
-and its identity s1 σ1 and checked on identities s101 σ1, s102 σ2 and s105 σ2 (``docs/benchmarks.md``)."""
+in its comment, with the rest of the rig in place. The brows', the lids', the dimple's, the corners'
+and the lower lip's bumps (place, one-sided reaches, motion) were fitted on ICT's neutral and its
+identity s1 σ1 (reaches then held to 0.3) and checked on identities s101 σ1, s102 σ2 and s105 σ2
+(``docs/benchmarks.md``)."""
 
 ROLLS: tuple[Roll, ...] = (
     # mouthRollUpper: the lip rolls in over the teeth
