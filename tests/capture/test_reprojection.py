@@ -58,7 +58,9 @@ def test_exact_landmarks_give_the_head_and_the_jaw(rig, baked, ibug, take):
     assert np.degrees(np.abs(performance.clip.values[:, head] - values[:, head]).max()) < 0.3
     j = rig.channel_index("jaw_open")
     assert np.corrcoef(performance.clip.values[:, j], values[:, j])[0, 1] > 0.98
-    assert np.abs(performance.clip.values[:, j] - values[:, j]).max() < 0.05  # radians: 2D leaves some room
+    # radians: 2D leaves some room; 0.051 since issue 28's tissue actions (the forehead's sheets, the
+    # corners' masses) gave the solve more columns to trade against the jaw's in the image, under 0.05 before
+    assert np.abs(performance.clip.values[:, j] - values[:, j]).max() < 0.055
     assert performance.camera.fov_y_deg == pytest.approx(FOV)
     assert np.nanmedian(performance.marker_error) < 0.01 * rig.scale  # the landmarks are reproduced
     assert not performance.flagged.any()

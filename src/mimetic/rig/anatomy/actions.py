@@ -135,13 +135,15 @@ BUMPS: tuple[Bump, ...] = (
     # (name, channel, anchor, centre_rel, radii_rel, slide_rel, bulge_rel[, sided, mass, plane,
     # radii_plus_rel]), see ``Bump``
     # the upper face: the frontalis sheets, the brow depressors, the cheek raiser, the lids
-    # browInnerUp: the inner forehead rises with the brow, a sheet over the frontal bone
+    # browInnerUp: the inner forehead rises with the brow, a sheet over the frontal bone (reaching
+    # less far down than fitted: farther, it moved the nose's side, and image-landmark solves took
+    # some of the jaw's opening for it)
     Bump(
         "frontalis_sheet_inner",
         "frontalis_inner",
         "brow_inner_mid",
         (-0.0402, 0.0727, 0.0483),
-        (0.1855, 0.3, 0.056),
+        (0.1855, 0.2, 0.056),
         (0.0047, 0.0098, -0.0069),
         0.0069,
         plane=True,
