@@ -41,7 +41,7 @@ import numpy as np
 from mimetic.rig.anatomy.creases import Crease
 from mimetic.rig.anatomy.gaze import gaze_follow_actions
 from mimetic.rig.anatomy.local import CHANNELS as LOCAL_CHANNELS
-from mimetic.rig.anatomy.local import LOCAL_BUMPS, MIN_WEIGHT, local_actions
+from mimetic.rig.anatomy.local import LOCAL_BUMPS, MIN_WEIGHT, local_actions, local_weights
 
 Action = Crease
 """An action is stored as a crease is: channel gains, vertices and offsets at full activation."""
@@ -376,16 +376,16 @@ def _bump_weights(
     in front when given, ``sx`` +1 on the subject's left and −1 on the right). A ``mass`` bump
     measures ``r`` in the face plane (x, y) and is whole through its depth out to its depth
     semi-axis, fading to 0 at twice that (a smoothstep in ``|z − centre_z|``)."""
-    d = (surface.vertices[ids] - centre) * np.array([sx, 1.0, 1.0])
-    minus = np.asarray(radii_rel, dtype=np.float64)
-    plus = minus if radii_plus_rel is None else np.asarray(radii_plus_rel, dtype=np.float64)
-    r = d / (np.where(d < 0.0, minus, plus) * surface.scale)
-    depth = np.ones(len(ids))
+    points = surface.vertices[ids]
+    minus = np.asarray(radii_rel, dtype=np.float64) * surface.scale
+    plus = minus if radii_plus_rel is None else np.asarray(radii_plus_rel, dtype=np.float64) * surface.scale
+    depth = 1.0
     if mass:
-        t = np.clip(np.abs(r[:, 2]) - 1.0, 0.0, 1.0)
-        depth, r = 1.0 - t * t * (3.0 - 2.0 * t), r[:, :2]
-    r2 = np.einsum("kd,kd->k", r, r)
-    w = np.where(r2 < 1.0, (1.0 - np.minimum(r2, 1.0)) ** 2, 0.0) * depth
+        dz = points[:, 2] - centre[2]
+        t = np.clip(np.abs(dz) / np.where(dz < 0.0, minus[2], plus[2]) - 1.0, 0.0, 1.0)
+        depth = 1.0 - t * t * (3.0 - 2.0 * t)
+        minus, plus = minus * [1.0, 1.0, np.inf], plus * [1.0, 1.0, np.inf]  # r in the face plane
+    w = local_weights(points, centre, minus, plus, sx) * depth
     keep = w > MIN_WEIGHT
     return ids[keep], w[keep]
 
