@@ -245,6 +245,17 @@ def test_what_the_front_sees_of_the_upper_lid_never_closes_past_the_lower():
         assert gap.smallest > -0.01 and gap.largest < 0.25  # cm: no crossing; 0.18 open at most
 
 
+@pytest.mark.parametrize(("seed", "sigma", "widest"), [(105, 2.0, 0.1), (118, 3.0, 0.1), (115, 3.0, 0.25)])
+def test_lids_sunk_into_the_eyeballs_spheres_close_on_the_opening_the_front_sees(seed, sigma, widest):
+    """Identities (check heads of the sweep) whose lid margins lie inside their eyeballs' spheres and
+    below the rim of the lid regions carried from the reference: the margins were taken for a tucked
+    skirt, the regions' rim closed instead, and the lids stopped short (s118 σ3 0.21 cm, s115 σ3
+    0.47 cm) or crossed (s105 σ2, −0.09 cm). On a user's mesh the opening's silhouette is now the
+    margin wherever it runs (``lid_rims(carried=True)``)."""
+    for gap in closed_lid_gaps(identity_rig(seed, sigma)):
+        assert gap.smallest > -0.02 and gap.largest <= widest  # cm
+
+
 @functools.cache
 def check_head_fidelity(seed: int, sigma: float) -> dict[str, float]:
     """ICT's 53 captured shapes fitted on the wire engine's baked basis of an identity no constant was

@@ -314,6 +314,7 @@ def close_lids(
             radius=radius,
             gaze=gaze,
             sclera=eyeball_sphere(mesh.vertices, mesh.faces, mesh.parts, regions, side, eye_corners),
+            carried=True,
         )
         if rims is not None:
             pivot = closing_pivot(rims, mesh.vertices, lid.head, closed)

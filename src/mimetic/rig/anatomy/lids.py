@@ -343,6 +343,7 @@ def lid_rims(
     radius: float,
     gaze: np.ndarray,
     sclera: tuple[np.ndarray, float] | None = None,
+    carried: bool = False,
 ) -> LidRims | None:
     """The rims of eye ``side``'s lids on a rest mesh (see the module docstring).
 
@@ -365,6 +366,14 @@ def lid_rims(
         part's sphere (ICT's cornea and films with the sclera) is larger and lies farther back, and
         where an identity's lid sinks toward its eyeball it took margin vertices that show in front
         of the sclera for a skirt (ICT identity s129 σ2's right upper lid stayed 0.7 cm open).
+    carried : bool
+        The lid regions were carried from the reference onto this mesh (a guess, not its own): the
+        opening is seen with the sclera's sphere, and its silhouette is the visible margin wherever
+        it runs, skin inside the eyeballs' spheres included, whenever it spans half the regions'
+        rims. On ICT's σ 2-3 identity heads a lid sinks into its eyeball's spheres and the regions'
+        rim runs a row or more above the opening (s115 σ3's right upper lid stopped 0.47 cm short of
+        the lower one; 0.18 now); on the reference the regions are the head's own, and the opening's
+        rim there is the tucked skirt's edge.
 
     Returns
     -------
@@ -395,7 +404,9 @@ def lid_rims(
     mixed = is_tucked[edges[:, 0]] != is_tucked[edges[:, 1]]
     next_to_tucked[edges[mixed].ravel()] = True
     rim = gaze_rim(vertices, faces, axes[2])
-    seen = _seen_margins(vertices, faces, corners, centre, radius)
+    seen = _seen_margins(
+        vertices, faces, corners, *(sclera if carried and sclera is not None else (centre, radius))
+    )
     upper, lower, margin = [], [], []
     upper_seen = lower_seen = np.zeros(0, dtype=np.int64)
     for tucked in (False, True):
@@ -405,14 +416,22 @@ def lid_rims(
         top = _chain(_envelope(up, edges, uvw, lowest=True), up, edges, uvw, width)
         bottom = _chain(_envelope(low, edges, uvw, lowest=False), low, edges, uvw, width)
         if not tucked and seen is not None:  # the head's own opening, not the regions' guess
-            on_span = [(uvw[m, 0] > lo) & (uvw[m, 0] < hi) & ~is_tucked[m] for m in seen]
+            on_span = [(uvw[m, 0] > lo) & (uvw[m, 0] < hi) & (carried | ~is_tucked[m]) for m in seen]
             up_seen, low_seen = (m[keep] for m, keep in zip(seen, on_span, strict=True))
             top_seen = _envelope(up_seen, edges, uvw, lowest=True)
             bottom_seen = _envelope(low_seen, edges, uvw, lowest=False)
             upper_seen, lower_seen = up_seen, _smooth_run(bottom_seen, uvw, width, lowest=False)
             # unless the opening's rim is sparser than the regions' (a coarse mesh: a few vertices
-            # across the eye, where the regions' rim is the margin)
-            if len(top_seen) >= len(top) / 2 and len(bottom_seen) >= len(bottom) / 2:
+            # across the eye, where the regions' rim is the margin); carried regions are compared by
+            # the span of the eye they cover (their rim runs wherever the guess put it)
+            if carried:
+                taken = all(
+                    len(a) >= MIN_MARGIN and np.ptp(uvw[a, 0]) >= 0.5 * (np.ptp(uvw[b, 0]) if len(b) else 0.0)
+                    for a, b in ((top_seen, top), (bottom_seen, bottom))
+                )
+            else:
+                taken = len(top_seen) >= len(top) / 2 and len(bottom_seen) >= len(bottom) / 2
+            if taken:
                 up, low, top, bottom = up_seen, low_seen, top_seen, bottom_seen
         upper.append(up[np.argsort(uvw[up, 0], kind="stable")])
         top, bottom = _smooth_run(top, uvw, width, lowest=True), _smooth_run(bottom, uvw, width, lowest=False)
