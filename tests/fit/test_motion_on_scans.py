@@ -273,6 +273,22 @@ def test_the_jaw_fully_open_turns_no_lip_triangle_over_at_the_corners(ict, seed,
     assert triangle_flips(rest, engine.deform(expression_pose(rig, "jaw_drop")), lips).sum() == 0
 
 
+def test_the_lips_bulge_as_one_in_anger_and_a_pucker(ict):
+    """An identity (s110 σ1, a check head of the sweep) whose lips meet at the corners in slivers a
+    tenth of a millimetre across: the lips' masses bulged along each vertex's own normal there, and
+    the library's anger and pucker turned one sliver over each. A mass now bulges along one normal
+    (``actions.Bump.bulge_rel``)."""
+    from mimetic.animate.expressions import expression_pose
+    from mimetic.quality import lip_faces, triangle_flips
+
+    rig = identity_rig(110, 1.0)
+    engine = make_engine(rig, "wire")
+    rest = engine.deform(np.array([c.default for c in rig.channels]))
+    lips = lip_faces(rig, ict_face_faces(rig.mesh, ict[1]))
+    for name in ("anger", "pucker"):
+        assert triangle_flips(rest, engine.deform(expression_pose(rig, name)), lips).sum() == 0, name
+
+
 @functools.cache
 def check_head_fidelity(seed: int, sigma: float) -> dict[str, float]:
     """ICT's 53 captured shapes fitted on the wire engine's baked basis of an identity no constant was

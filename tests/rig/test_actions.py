@@ -150,6 +150,24 @@ def test_mass_bumps_move_their_tissue_as_one_through_its_depth(rig):
     assert np.isin(lips, a.vertices[whole]).all()
 
 
+def test_a_mass_bulges_as_one_along_its_mean_normal(rig):
+    """A mass's bulge is along the weighted mean of its normals, the same for every vertex: along each
+    vertex's own normal, skin a tenth of a millimetre apart where the lips meet at the corners (their
+    normals up to 0.1 rad apart) moved apart enough to turn those slivers over in a pucker."""
+    surface = _surface(rig)
+    slide = np.array([0.0, 0.01, 0.05])
+    mass = Bump(
+        "m", "cheek_puff", "mouth_corner", (-0.12, 0.0, 0.0), (0.2, 0.2, 0.1), tuple(slide), 0.02, mass=True
+    )
+    (a,) = bump_actions(surface, mass, {"cheek_puff_L"})
+    size = np.linalg.norm(a.offsets_rel, axis=1)
+    directions = a.offsets_rel / size[:, None]
+    np.testing.assert_allclose(directions, np.broadcast_to(directions[0], directions.shape), atol=1e-12)
+    outward = size @ surface.normals[a.vertices]  # the weights are the sizes over one field's length
+    field = slide + 0.02 * outward / np.linalg.norm(outward)
+    np.testing.assert_allclose(directions[0], field / np.linalg.norm(field), atol=1e-12)
+
+
 def test_plane_bumps_follow_the_forehead_back_and_reach_farther_on_their_long_side(rig):
     """A sheet over the frontal bone (``plane``): its weights fall off in the face plane, so the
     skin high on the forehead, which curves back, moves as the brow does; its motion slides along

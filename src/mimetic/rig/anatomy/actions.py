@@ -68,7 +68,10 @@ class Bump:
         Motion at the bump's centre at full activation, × head height, slid onto the surface (a
         ``mass`` moves by it unslid); x to the bump's own side.
     bulge_rel : float
-        Motion along the outward normal at the centre at full activation, × head height.
+        Motion along the outward normal at full activation, × head height: each vertex's own for a
+        sheet, the weighted mean of the bump's normals for a ``mass`` (which moves as one: where the
+        lips meet at the corners, vertices a tenth of a millimetre apart have normals 0.1 rad apart,
+        and a bulge along each turned those slivers over in a pucker).
     sided : bool
         One bump per side (``_L``, ``_R``) or one on the midline.
     mass : bool
@@ -420,6 +423,9 @@ def bump_actions(surface: Surface, bump: Bump, channels: Iterable[str]) -> list[
         )
         normals = surface.normals[ids]
         motion = np.asarray(bump.slide_rel) * mirror
+        if bump.mass and len(ids):  # one mass, one bulge: along its weighted mean outward normal
+            outward = w @ normals
+            normals = np.broadcast_to(outward / np.linalg.norm(outward), normals.shape)
         slide = np.broadcast_to(motion, normals.shape) if bump.mass else slide_onto(motion, normals)
         field = slide + bump.bulge_rel * normals
         out.append(Action(bump.name + suffix, {channel: 1.0}, ids, w[:, None] * field))

@@ -17,7 +17,7 @@ forward). That makes it one-sided where the anatomy is: the brow's head drags th
 above it but not the lid skin below it. Its motion at full activation is a vector in feature widths
 (x toward the bump's own side), either slid onto the surface (skin sliding over bone: the brow) or
 the same for every vertex (a mass: the nose's cartilage and the tissue on it), plus a bulge along
-the tissue normal.
+the tissue normal (a mass's: the weighted mean of its normals, so it bulges as one).
 
 The numbers in ``LOCAL_BUMPS`` are anatomical, not fitted to a captured shape: each centre is a
 landmark (or the mean of two), each reach about the extent of the tissue the muscle inserts into,
@@ -268,6 +268,9 @@ def local_actions(surface: Surface, bump: LocalBump, channels: Iterable[str]) ->
         motion = np.asarray(bump.motion) * mirror * width
         if bump.slide:
             motion = motion[None, :] - (normals @ motion)[:, None] * normals
+        elif len(ids):  # a mass bulges as one, along its weighted mean outward normal (as actions.Bump)
+            outward = w @ normals
+            normals = np.broadcast_to(outward / np.linalg.norm(outward), normals.shape)
         field = motion + bump.bulge * width * normals
         out.append(Crease(bump.name + suffix, {channel: 1.0}, ids, w[:, None] * field / surface.scale))
     return out
