@@ -256,23 +256,6 @@ def test_lids_sunk_into_the_eyeballs_spheres_close_on_the_opening_the_front_sees
         assert gap.smallest > -0.02 and gap.largest <= widest  # cm
 
 
-@pytest.mark.parametrize(("seed", "sigma"), [(111, 2.0), (124, 3.0)])
-def test_the_jaw_fully_open_turns_no_lip_triangle_over_at_the_corners(ict, seed, sigma):
-    """Identities (check heads of the sweep) whose lip skin beside the corners took a jaw weight
-    rising 0.3 per cm against the jaw's motion: the library's jaw drop (0.4 rad, 4.4 cm of motion
-    at full weight there) turned 8 triangles over within a third of the half mouth width of the
-    corners. The corners' core, which moves with half the jaw as one, is now 0.25 of the half
-    width (``rig.bones.CORNER_CORE``)."""
-    from mimetic.animate.expressions import expression_pose
-    from mimetic.quality import lip_faces, triangle_flips
-
-    rig = identity_rig(seed, sigma)
-    engine = make_engine(rig, "wire")
-    rest = engine.deform(np.array([c.default for c in rig.channels]))
-    lips = lip_faces(rig, ict_face_faces(rig.mesh, ict[1]))
-    assert triangle_flips(rest, engine.deform(expression_pose(rig, "jaw_drop")), lips).sum() == 0
-
-
 def test_the_lips_bulge_as_one_in_anger_and_a_pucker(ict):
     """An identity (s110 σ1, a check head of the sweep) whose lips meet at the corners in slivers a
     tenth of a millimetre across: the lips' masses bulged along each vertex's own normal there, and

@@ -51,16 +51,9 @@ HARMONIC_LENGTH_REL = 0.15
 """Diffusion length (× head height) of the jaw weight between the jaw's and the skull's skin."""
 CORNER_JAW = 0.5
 """Jaw weight of the mouth corners (the modiolus: halfway between the lips)."""
-CORNER_CORE = 0.25
-"""Lip skin this near a mouth corner (× half the mouth width, 6 mm) takes exactly CORNER_JAW: the
-corner's slivers, where the lips' rows converge, move as one instead of shearing flat. A jaw opened
-0.4 rad would move the skin at a corner 4-4.5 cm at full weight, so a jaw weight rising more than
-0.25 per cm against that motion (up or forward, as the lips' ramps and the transfer's smoothing
-leave it around the corner) turns a triangle over (skinning's Jacobian there is ``I + d ⊗ ∇w``):
-at 0.1 (2.5 mm) the library's ``jaw_drop`` flipped 1-8 lip triangles within a third of the half
-width of the corners on ICT's identity heads. Chosen on the calibration heads
-(0.1 / 0.2 / 0.25 / 0.3: 29 / 20 / 19 / 16 flips over the library; ICT's jawOpen fitted to 33.0 /
-33.4 / 33.7 / 34.0 %), checked on the sweep's check heads (``benchmarks/sweep_motion.py``)."""
+CORNER_CORE = 0.1
+"""Lip skin this near a mouth corner (× half the mouth width, 2.5 mm) takes exactly CORNER_JAW: the
+corner's slivers, where the lips' rows converge, move as one instead of shearing flat."""
 UPPER_LIP_REACH = 0.85
 """The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width (the upper
 lip's middle then follows the jaw less than ICT's own jawOpen does, on ICT's identity heads too)."""
