@@ -408,9 +408,8 @@ class Chain:
         """Skull push (+Z onto the rest forehead), creases and tissue actions, skinning, lip contact,
         lid contact, lid sculptors, then the accessories (eyelashes and the like) placed on the skin
         they ride. The lips' contact comes after skinning, on the positions a viewer sees: a pair the
-        muscles left one behind the other, turned by the jaw, moves apart in height as well (with
-        the corners' jaw weight 0.5 on both lips over 6 mm, the default head's fem joyous surprise
-        crossed them by 0.02 cm with the contact before skinning).
+        muscles left one behind the other moves apart in height too as the jaw turns it, so a pair
+        pressed together before skinning could still cross after it.
 
         ``deformed`` (n, 3) is the rest skin moved by the muscles; returns (n, 3).
         """

@@ -70,7 +70,7 @@ class Bump:
     bulge_rel : float
         Motion along the outward normal at full activation, × head height: each vertex's own for a
         sheet, the weighted mean of the bump's normals for a ``mass`` (which moves as one: where the
-        lips meet at the corners, vertices a tenth of a millimetre apart have normals 0.1 rad apart,
+        lips meet at the corners, vertices a tenth of a millimetre apart have normals up to 0.1 rad apart,
         and a bulge along each turned those slivers over in a pucker).
     sided : bool
         One bump per side (``_L``, ``_R``) or one on the midline.
