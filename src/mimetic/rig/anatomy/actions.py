@@ -41,7 +41,7 @@ import numpy as np
 from mimetic.rig.anatomy.creases import Crease
 from mimetic.rig.anatomy.gaze import gaze_follow_actions
 from mimetic.rig.anatomy.local import CHANNELS as LOCAL_CHANNELS
-from mimetic.rig.anatomy.local import LOCAL_BUMPS, MIN_WEIGHT, local_actions, local_weights
+from mimetic.rig.anatomy.local import LOCAL_BUMPS, MIN_WEIGHT, local_actions, local_weights, mass_normals
 
 Action = Crease
 """An action is stored as a crease is: channel gains, vertices and offsets at full activation."""
@@ -423,9 +423,8 @@ def bump_actions(surface: Surface, bump: Bump, channels: Iterable[str]) -> list[
         )
         normals = surface.normals[ids]
         motion = np.asarray(bump.slide_rel) * mirror
-        if bump.mass and len(ids):  # one mass, one bulge: along its weighted mean outward normal
-            outward = w @ normals
-            normals = np.broadcast_to(outward / np.linalg.norm(outward), normals.shape)
+        if bump.mass:  # one mass, one bulge
+            normals = mass_normals(w, normals)
         slide = np.broadcast_to(motion, normals.shape) if bump.mass else slide_onto(motion, normals)
         field = slide + bump.bulge_rel * normals
         out.append(Action(bump.name + suffix, {channel: 1.0}, ids, w[:, None] * field))

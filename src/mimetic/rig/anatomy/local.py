@@ -241,6 +241,15 @@ def _sided(surface: Surface, name: str, suffix: str) -> str:
     return name if name in surface.landmarks or not suffix else name + suffix
 
 
+def mass_normals(weights: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """One outward normal for a mass (k, 3): the ``weights`` (k,) weighted mean of its vertices'
+    ``normals`` (k, 3), normalised, for every vertex, so the mass bulges as one."""
+    if not len(weights):
+        return normals
+    outward = weights @ normals
+    return np.broadcast_to(outward / np.linalg.norm(outward), normals.shape)
+
+
 def local_actions(surface: Surface, bump: LocalBump, channels: Iterable[str]) -> list[Crease]:
     """The actions (one per side, or one) of ``bump`` on ``surface``, for the channels the rig has;
     none where the rig lacks a landmark it is placed or sized from."""
@@ -268,9 +277,8 @@ def local_actions(surface: Surface, bump: LocalBump, channels: Iterable[str]) ->
         motion = np.asarray(bump.motion) * mirror * width
         if bump.slide:
             motion = motion[None, :] - (normals @ motion)[:, None] * normals
-        elif len(ids):  # a mass bulges as one, along its weighted mean outward normal (as actions.Bump)
-            outward = w @ normals
-            normals = np.broadcast_to(outward / np.linalg.norm(outward), normals.shape)
+        else:  # a mass bulges as one
+            normals = mass_normals(w, normals)
         field = motion + bump.bulge * width * normals
         out.append(Crease(bump.name + suffix, {channel: 1.0}, ids, w[:, None] * field / surface.scale))
     return out
