@@ -20,7 +20,7 @@ kinds build them from the rig's own landmarks and normals, in fractions of the h
   surface (a sheet sliding over the bone: the forehead, the brows; over the forehead it falls off
   in the face plane, so it follows the brow's skin as it curves back) or, for a mass (the lips, the
   cheek's fat, the side of the nose, the chin beside the lower lip), by the same vector everywhere
-  and whole through its depth, plus a bulge along the normal;
+  and whole through its depth, plus a bulge along the normal (one normal for a whole mass);
 * ``Roll``: a lip turning about a horizontal line behind it (``θ x̂ × (p − pivot)``), weighted by a
   bump over the lip.
 
@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mimetic.head.shape import smoothstep
 from mimetic.rig.anatomy.creases import Crease
 from mimetic.rig.anatomy.gaze import gaze_follow_actions
 from mimetic.rig.anatomy.local import CHANNELS as LOCAL_CHANNELS
@@ -385,8 +386,7 @@ def _bump_weights(
     depth = 1.0
     if mass:
         dz = points[:, 2] - centre[2]
-        t = np.clip(np.abs(dz) / np.where(dz < 0.0, minus[2], plus[2]) - 1.0, 0.0, 1.0)
-        depth = 1.0 - t * t * (3.0 - 2.0 * t)
+        depth = 1.0 - smoothstep(1.0, 2.0, np.abs(dz) / np.where(dz < 0.0, minus[2], plus[2]))
         minus, plus = minus * [1.0, 1.0, np.inf], plus * [1.0, 1.0, np.inf]  # r in the face plane
     w = local_weights(points, centre, minus, plus, sx) * depth
     keep = w > MIN_WEIGHT
