@@ -123,6 +123,7 @@ def synthetic_basis(rig: Rig) -> Basis:
                     "gaze_yaw": [0, 1, 0],
                     "gaze_pitch": [-1, 0, 0],
                     "gaze_convergence": [0, 0.5 * toward_nose, 0],
+                    "gaze_vertical_vergence": [0.5 * toward_nose, 0, 0],  # the left eye up
                 }
                 bone = f"eye_{side}"
                 deltas[k] += _rotation_delta(

@@ -90,10 +90,10 @@ SOLVE_ITERATIONS = 30
 # solve drives to their limits, and what the rig has (muscles slide skin along the surface; the jaw,
 # lids and eyes are bones; no volume, pressure or contact).
 REASONS = {
-    "eyeLookIn": "gaze turns the eyeballs (outside the face range); the lids and skin do not follow it",
-    "eyeLookOut": "gaze turns the eyeballs (outside the face range); the lids and skin do not follow it",
-    "eyeLookUp": "gaze moves the eyeballs only; the lid follow comes from the eyelid channels alone",
-    "eyeLookDown": "gaze moves the eyeballs only; the lid follow comes from the eyelid channels alone",
+    "eyeLookIn": "the orbit's skin turns with each eye by one soft field, placed anatomically",
+    "eyeLookOut": "the orbit's skin turns with each eye by one soft field, placed anatomically",
+    "eyeLookUp": "the lids ride the eye by the soft field; ICT's upper lid folds under the brow",
+    "eyeLookDown": "the lids ride the eye by the soft field; ICT's upper lid travels further and folds",
     "cheekSquint": "no cheek raise: orbicularis oculi and the lids move, nothing lifts the cheek mass",
     "mouthRollUpper": "no lip roll: muscles slide skin along the surface; rolling a lip in needs a rotation",
     "mouthRollLower": "no lip roll: muscles slide skin along the surface; rolling a lip in needs a rotation",

@@ -152,18 +152,22 @@ def test_reach_and_calibration_curves_are_monotone(calibration):
     assert calibration.reach(4, "+") == 0.0  # the upper lip cannot be lowered
 
 
-def test_gaze_faps_solve_the_shared_gaze_channels(rig, calibration):
+def test_gaze_faps_turn_each_eye_as_they_say(rig, calibration):
+    names = ("gaze_yaw", "gaze_convergence", "gaze_pitch", "gaze_vertical_vergence")
+
     def channels(pose):
-        return [pose[rig.channel_index(c)] for c in ("gaze_yaw", "gaze_convergence", "gaze_pitch")]
+        return [pose[rig.channel_index(c)] for c in names]
 
     both_left = fap_pose(rig, {23: 20000, 24: 20000}, calibration=calibration)
-    assert channels(both_left) == pytest.approx([0.2, 0.0, 0.0])
+    assert channels(both_left) == pytest.approx([0.2, 0.0, 0.0, 0.0])
     inward = fap_pose(rig, {23: -10000, 24: 10000}, calibration=calibration)  # both toward the nose
-    assert channels(inward) == pytest.approx([0.0, 0.2, 0.0])
+    assert channels(inward) == pytest.approx([0.0, 0.2, 0.0, 0.0])
     down = fap_pose(rig, {25: 20000, 26: 20000}, calibration=calibration)
-    assert channels(down) == pytest.approx([0.0, 0.0, -0.2])
-    with pytest.warns(MimeticWarning, match="diverge"):
-        fap_pose(rig, {23: 10000, 24: -10000}, calibration=calibration)
+    assert channels(down) == pytest.approx([0.0, 0.0, -0.2, 0.0])
+    outward = fap_pose(rig, {23: 10000, 24: -10000}, calibration=calibration)  # the eyes diverge
+    assert channels(outward) == pytest.approx([0.0, -0.2, 0.0, 0.0])
+    left_down = fap_pose(rig, {25: 30000}, calibration=calibration)  # the left eye alone, 0.3 rad
+    assert channels(left_down) == pytest.approx([0.0, 0.0, -0.15, -0.3])  # left −0.15 − 0.15, right 0
 
 
 def test_head_faps_set_the_head_channels(rig):

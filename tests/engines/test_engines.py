@@ -213,6 +213,26 @@ def test_engine_gaze_aims_both_eyes_at_a_target(name):
         assert np.degrees(np.arccos(np.clip(axis @ wanted, -1, 1))) < 1.0, side
 
 
+@pytest.mark.parametrize(
+    ("values", "turn"),
+    [
+        ({"gaze_pitch": -0.2, "gaze_vertical_vergence": -0.4}, (0.0, -0.4)),  # ARKit eyeLookDownLeft
+        ({"gaze_yaw": 0.2, "gaze_convergence": -0.4}, (0.4, 0.0)),  # eyeLookOutLeft: outward is +X
+    ],
+)
+def test_engine_one_eye_turns_alone(values, turn):
+    engine = engine_for("wire", None)
+    rig = engine.rig
+    rest, v = engine.deform(pose(rig)), engine.deform(pose(rig, values))
+    for side in "LR":
+        centre = rig.bone(f"eye_{side}").head
+        before, after = (landmark(engine, f"pupil_{side}", x) - centre for x in (rest, v))
+        yaw = np.arctan2(after[0], after[2]) - np.arctan2(before[0], before[2])
+        pitch = np.arcsin(after[1] / np.linalg.norm(after)) - np.arcsin(before[1] / np.linalg.norm(before))
+        wanted = turn if side == "L" else (0.0, 0.0)
+        assert (yaw, pitch) == pytest.approx(wanted, abs=0.01), side
+
+
 @pytest.mark.parametrize(("name", "seed"), CASES, ids=IDS)
 def test_engine_jaw_moves_the_lower_face_only(name, seed):
     engine = engine_for(name, seed)

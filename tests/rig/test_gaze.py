@@ -61,3 +61,14 @@ def test_looking_up_lifts_both_lids_and_the_skin_around_them(case):
         assert up[lids, 1].mean() > 0.0 > down[lids, 1].mean(), side
         assert up[lower, 1].mean() > 0.0, side  # the lower lid goes along too (its plate does not follow)
         assert np.abs(up[far]).max() < 1e-9, side
+
+
+def test_one_eye_looks_down_alone_with_the_vertical_vergence(case):
+    rig, _, motion = case
+    d = motion({"gaze_pitch": -0.2, "gaze_vertical_vergence": -0.4})  # ARKit's eyeLookDownLeft
+    lids_l, _ = _skin_near_eye(rig, "L")
+    lids_r, _ = _skin_near_eye(rig, "R")
+    both = motion({"gaze_pitch": -0.4})  # both eyes down as far
+    assert d[lids_l, 1].mean() < 0.0
+    assert np.allclose(d[lids_l], both[lids_l], atol=1e-6 * rig.scale)  # the left eye's lids as in both
+    assert np.abs(d[lids_r]).max() < 1e-3 * np.abs(d[lids_l]).max()  # the right eye's lids stay

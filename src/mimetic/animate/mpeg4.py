@@ -22,8 +22,9 @@ response curve ``s(t)``, sampled at ``samples`` points). ``fap_pose`` inverts it
 ``t = s^-1(value × FAPU)``, so a FAP alone moves its feature point by value × FAPU (within the
 curve's interpolation) up to what the driver reaches at full strength. Several FAPs add their
 drivers' offsets (FAPs driving the same channel add up), then every channel is clipped into range.
-The eyeball FAPs 23-26 are solved jointly for the rig's shared gaze channels (``gaze_yaw``,
-``gaze_convergence``: exact while the eyes do not diverge; ``gaze_pitch``: the two eyes' mean),
+The eyeball FAPs 23-26 set the rig's gaze channels so that each eye turns as its FAPs say
+(``gaze_yaw`` and ``gaze_pitch`` the two eyes' means, ``gaze_convergence`` and
+``gaze_vertical_vergence`` their differences, within ±0.4 rad),
 the head FAPs 48-50 set the head channels (1 AU = 1e-5 rad).
 
 **Unsupported FAPs** (``UNSUPPORTED``: the tongue, which has no feature points in the rig, cheek
@@ -612,24 +613,19 @@ def fap_expression_pose(
 # ---- the pose
 
 
-def _gaze(values: Mapping[str, float]) -> tuple[dict[str, float], str]:
-    """Gaze channels from eyeball FAP angles (rad, FAP signs) and a problem ("" if none)."""
+def _gaze(values: Mapping[str, float]) -> dict[str, float]:
+    """Gaze channels from eyeball FAP angles (rad, FAP signs): each eye's turn exactly, as
+    ``engines.skinning`` composes it from the shared and the difference channels."""
     yaw_l, yaw_r = values.get("yaw_L", 0.0), values.get("yaw_R", 0.0)  # + = to the face's left
     out: dict[str, float] = {}
-    problem = ""
     if "yaw_L" in values or "yaw_R" in values:
         out["gaze_yaw"] = 0.5 * (yaw_l + yaw_r)
         out["gaze_convergence"] = yaw_r - yaw_l  # > 0: both eyes turn toward the nose
-        if out["gaze_convergence"] < 0:
-            problem = "yaw_l/r_eyeball: the eyes cannot diverge; convergence clipped to 0"
     if "pitch_L" in values or "pitch_R" in values:
         pitch_l, pitch_r = values.get("pitch_L", 0.0), values.get("pitch_R", 0.0)  # + = down
         out["gaze_pitch"] = -0.5 * (pitch_l + pitch_r)
-        if abs(pitch_l - pitch_r) > 1e-12:
-            problem = (
-                problem + "; " if problem else ""
-            ) + "pitch_l/r_eyeball differ: one gaze pitch, their mean used"
-    return out, problem
+        out["gaze_vertical_vergence"] = pitch_r - pitch_l  # > 0: the left eye higher
+    return out
 
 
 def fap_pose(
@@ -712,10 +708,7 @@ def fap_pose(
             if problem:
                 problems.append(problem)
     if gaze:
-        values, problem = _gaze(gaze)
-        _add(rig, out, values, 1.0, "the eyeball FAPs")
-        if problem:
-            problems.append(problem)
+        _add(rig, out, _gaze(gaze), 1.0, "the eyeball FAPs")
     if problems:
         warnings.warn("FAPs not (fully) realised: " + "; ".join(problems), MimeticWarning, stacklevel=2)
     return check_activations(rig, out, clip=True)

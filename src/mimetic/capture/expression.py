@@ -38,7 +38,7 @@ from mimetic.engines.basis import Basis
 from mimetic.errors import ActivationError
 from mimetic.rig.model import Rig
 
-GAZE_CHANNELS = ("gaze_yaw", "gaze_pitch", "gaze_convergence")
+GAZE_CHANNELS = ("gaze_yaw", "gaze_pitch", "gaze_convergence", "gaze_vertical_vergence")
 """Left out unless named in ``active``: markers and face landmarks have no iris points, and the rig's
 lids follow the gaze, so a lid marker would explain a blink as the eyes turning down."""
 NOSE_CHANNELS = (

@@ -13,8 +13,11 @@ Conventions (right-handed, +Y up, +Z forward; angles in radians, positive as nam
   lid does. The levator palpebrae and the orbicularis oculi act on the lids through these bones
   (``LID_MUSCLES``), as in the thesis's rig, where the lids are bones.
 * ``gaze_yaw`` > 0 turns both eyes to the subject's left (+X), ``gaze_pitch`` > 0 looks up,
-  ``gaze_convergence`` turns each eye toward the nose by half its value (< 0: a slight divergence,
-  so one eye can turn out while the other stays).
+  ``gaze_convergence`` turns each eye toward the nose by half its value (< 0: outward),
+  ``gaze_vertical_vergence`` turns the left eye up and the right eye down by half its value. So
+  each eye turns on its own: left yaw = yaw − convergence / 2, pitch = pitch + vertical / 2;
+  right yaw = yaw + convergence / 2, pitch = pitch − vertical / 2 (one eye looking 0.4 rad aside
+  or down while the other stays, as ARKit's and ICT's one-eye ``eyeLook`` shapes do).
 * ``head_yaw`` > 0 turns the face to the subject's left, ``head_pitch`` > 0 nods the chin down,
   ``head_roll`` > 0 tilts the top of the head to the subject's left; about the head joint.
 
@@ -85,9 +88,9 @@ def bone_transforms(rig: Rig, values: np.ndarray) -> np.ndarray:
     jaw = rig.bone("jaw").head
     shift = rig.scale * np.array([ch("jaw_slide"), 0.0, ch("jaw_protrude")])
     local["jaw"] = about(rotation_x(ch("jaw_open")), jaw, shift)
-    pitch = ch("gaze_pitch")
     for side, sign in (("L", -1.0), ("R", 1.0)):
         centre = rig.bone(f"eye_{side}").head
+        pitch = ch("gaze_pitch") - sign * 0.5 * ch("gaze_vertical_vergence")
         upper = ch(f"eyelid_upper_{side}") - LID_FOLLOWS_GAZE[0] * pitch
         lower = ch(f"eyelid_lower_{side}") + LID_FOLLOWS_GAZE[1] * pitch
         closing = rig.channel(f"eyelid_upper_{side}").maximum if f"eyelid_upper_{side}" in named else 0.6
@@ -125,11 +128,13 @@ def linear_blend_skinning(vertices: np.ndarray, weights: sp.spmatrix, transforms
 
 
 def aim_gaze(rig: Rig, target: np.ndarray) -> dict[str, float]:
-    """Gaze channels (yaw, pitch, convergence, rad) that aim both eyes at ``target`` (3,), rig units.
+    """Gaze channels (yaw, pitch, convergence, vertical vergence; rad) that aim both eyes at
+    ``target`` (3,), rig units.
 
     Each eye looks along +Z at rest; the aim of an eye at centre c is the direction target - c.
-    Yaw and pitch are those of the midpoint between the eyes, convergence the difference between
-    the two eyes' yaws (positive when both turn toward the nose), as ``bone_transforms`` reads them.
+    Yaw and pitch are the means of the two eyes', convergence the right eye's yaw minus the left's
+    (positive when both turn toward the nose), the vertical vergence the left eye's pitch minus the
+    right's (not 0 when the eyes sit at different heights), as ``bone_transforms`` reads them.
     """
     target = np.asarray(target, dtype=np.float64)
     yaws, pitches = [], []
@@ -141,4 +146,5 @@ def aim_gaze(rig: Rig, target: np.ndarray) -> dict[str, float]:
         "gaze_yaw": float(0.5 * (yaws[0] + yaws[1])),
         "gaze_pitch": float(0.5 * (pitches[0] + pitches[1])),
         "gaze_convergence": float(yaws[1] - yaws[0]),
+        "gaze_vertical_vergence": float(pitches[0] - pitches[1]),
     }

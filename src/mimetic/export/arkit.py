@@ -8,13 +8,12 @@ engine's deformation under the activation set that realises it, minus the rest p
 kinds (``STATUS``):
 
 * exact: ``deform(v_k) - rest``;
-* split (``SPLIT``): the rig drives both sides with one channel (one gaze pitch for both eyes,
-  the midline procerus and mentalis), so the pose of such a shape alone moves both sides by
-  half. The bake keeps this side's half of the symmetric pair's motion,
-  ``s_L(x) * (deform(v_k + v_pair) - rest)``, with ``s_L`` a smooth step across the midline
-  (``s_L + s_R = 1``). So the baked pair adds up to the symmetric motion and each half is
-  one-sided, as artists split symmetric shapes. ``eyeLookOutLeft`` pairs with
-  ``eyeLookInRight`` (the eyes cannot diverge, but both can look left);
+* split (``SPLIT``): the rig drives both sides with one channel (the midline procerus and
+  mentalis), so the pose of such a shape alone moves both sides by half. The bake keeps this
+  side's half of the symmetric pair's motion, ``s_L(x) * (deform(v_k + v_pair) - rest)``, with
+  ``s_L`` a smooth step across the midline (``s_L + s_R = 1``). So the baked pair adds up to the
+  symmetric motion and each half is one-sided, as artists split symmetric shapes. (The eyes turn
+  each on its own, so the ``eyeLook`` shapes are exact);
 * approximate (``APPROXIMATE``): the nearest motion the rig has (``mouthClose``: the lips
   closing over an open jaw; ``mouthShrugUpper``: the upper lip raised, not everted);
 * unsupported (``UNSUPPORTED``): none today (the table can mark a shape the rig cannot make; it

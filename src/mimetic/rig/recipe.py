@@ -342,7 +342,8 @@ def _channels(muscles: list[Muscle]) -> list[Channel]:
     channels += [
         Channel("gaze_yaw", -0.6, 0.6, unit="rad", group="eyes"),
         Channel("gaze_pitch", -0.5, 0.5, unit="rad", group="eyes"),
-        Channel("gaze_convergence", -0.2, 0.4, unit="rad", group="eyes"),
+        Channel("gaze_convergence", -0.4, 0.4, unit="rad", group="eyes"),
+        Channel("gaze_vertical_vergence", -0.4, 0.4, unit="rad", group="eyes"),
         Channel("head_yaw", -0.9, 0.9, unit="rad", group="head"),
         Channel("head_pitch", -0.6, 0.6, unit="rad", group="head"),
         Channel("head_roll", -0.5, 0.5, unit="rad", group="head"),

@@ -12,7 +12,8 @@ those shapes to 54–61 %.
 about the vertical (yaw) or the horizontal (pitch) through the eyeball's centre by
 ``GAZE_SKIN_FOLLOW`` of the eye's turn times a bump ``local.local_weights`` (whole at its centre, 0
 at its reach), linearised. Each eye's yaw is ``gaze_yaw`` plus or minus half of
-``gaze_convergence`` (``engines.skinning``), so the yaw action's gains are those. The upper lid's
+``gaze_convergence``, its pitch ``gaze_pitch`` plus or minus half of ``gaze_vertical_vergence``
+(``engines.skinning``), so the actions' gains are those. The upper lid's
 bone follows a little more of the pitch (``skinning.LID_FOLLOWS_GAZE``), so its margin rides the
 cornea down about half-way. Everything is sized by the eye's own width, inner to outer canthus
 (``local.feature_widths``), so it carries to every head.
@@ -78,5 +79,8 @@ def gaze_follow_actions(surface: Surface, channels: Iterable[str]) -> list[Creas
             out.append(Crease(f"gaze_follow_yaw_{side}", gains, ids, outward))
         if "gaze_pitch" in channels:  # looking up turns the eye about −X
             upward = follow * np.cross([-1.0, 0.0, 0.0], arm)
-            out.append(Crease(f"gaze_follow_pitch_{side}", {"gaze_pitch": 1.0}, ids, upward))
+            # and up by gaze_pitch plus half the vertical vergence on the left, minus on the right
+            vertical = {"gaze_vertical_vergence": 0.5 * sx} if "gaze_vertical_vergence" in channels else {}
+            gains = {"gaze_pitch": 1.0} | vertical
+            out.append(Crease(f"gaze_follow_pitch_{side}", gains, ids, upward))
     return out
