@@ -168,6 +168,9 @@ def test_gaze_faps_turn_each_eye_as_they_say(rig, calibration):
     assert channels(outward) == pytest.approx([0.0, -0.2, 0.0, 0.0])
     left_down = fap_pose(rig, {25: 30000}, calibration=calibration)  # the left eye alone, 0.3 rad
     assert channels(left_down) == pytest.approx([0.0, 0.0, -0.15, -0.3])  # left −0.15 − 0.15, right 0
+    with pytest.warns(MimeticWarning, match="gaze_convergence's range"):  # 0.8 rad apart: clipped to 0.4
+        apart = fap_pose(rig, {23: 40000, 24: -40000}, calibration=calibration)
+    assert channels(apart)[1] == pytest.approx(rig.channel("gaze_convergence").minimum)
 
 
 def test_head_faps_set_the_head_channels(rig):

@@ -24,7 +24,7 @@ curve's interpolation) up to what the driver reaches at full strength. Several F
 drivers' offsets (FAPs driving the same channel add up), then every channel is clipped into range.
 The eyeball FAPs 23-26 set the rig's gaze channels so that each eye turns as its FAPs say
 (``gaze_yaw`` and ``gaze_pitch`` the two eyes' means, ``gaze_convergence`` and
-``gaze_vertical_vergence`` their differences, within ±0.4 rad),
+``gaze_vertical_vergence`` their differences, within ±0.4 rad: beyond, clipped with a warning),
 the head FAPs 48-50 set the head channels (1 AU = 1e-5 rad).
 
 **Unsupported FAPs** (``UNSUPPORTED``: the tongue, which has no feature points in the rig, cheek
@@ -708,7 +708,11 @@ def fap_pose(
             if problem:
                 problems.append(problem)
     if gaze:
-        _add(rig, out, _gaze(gaze), 1.0, "the eyeball FAPs")
+        values = _gaze(gaze)
+        _add(rig, out, values, 1.0, "the eyeball FAPs")
+        beyond = [c for c, x in values.items() if not rig.channel(c).minimum <= x <= rig.channel(c).maximum]
+        if beyond:
+            problems.append(f"the eyeball FAPs turn the eyes beyond {', '.join(beyond)}'s range; clipped")
     if problems:
         warnings.warn("FAPs not (fully) realised: " + "; ".join(problems), MimeticWarning, stacklevel=2)
     return check_activations(rig, out, clip=True)
