@@ -203,9 +203,12 @@ def test_reverse_map_recovers_single_shapes_through_the_engine(rig, engine, shap
     for row, name in zip(estimate, names, strict=True):
         assert row[ARKIT_NAMES.index(name)] == pytest.approx(1.0, abs=0.02), name
         assert np.delete(row, ARKIT_NAMES.index(name)).max() < 0.02, name
-    assert {"eyeLookUpLeft", "eyeLookOutRight"} <= set(names)  # one eye alone is exact: the other gets 0
+    assert {"eyeLookUpLeft", "eyeLookOutRight"} <= set(names)
+    # one eye alone is exact (a single frame in, a (52,) row out): the other eye's shape gets 0
     row = arkit_weights(engine, arkit_pose(rig, {"eyeLookUpLeft": 1.0}), shapes=shapes)
     assert row.shape == (52,)
+    assert row[ARKIT_NAMES.index("eyeLookUpLeft")] == pytest.approx(1.0, abs=0.02)
+    assert row[ARKIT_NAMES.index("eyeLookUpRight")] < 0.02
 
 
 def test_reverse_map_fits_engine_poses_better_than_the_generating_weights(rig, engine, shapes, rest):
