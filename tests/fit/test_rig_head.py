@@ -376,7 +376,7 @@ def test_ict_rigs_from_automatic_landmarks(ict, ict_rigged: RigResult, mediapipe
     """The whole automatic path on a real face: MediaPipe landmarks, fit, rig."""
     from mimetic.fit.autolandmarks import auto_landmarks
 
-    mesh, _, _ = ict
+    mesh, _, meta = ict
     marks = auto_landmarks(mesh)
     assert len(marks) >= 30
     result = rig_head(mesh, marks)
@@ -386,6 +386,16 @@ def test_ict_rigs_from_automatic_landmarks(ict, ict_rigged: RigResult, mediapipe
     a = result.rig.skin_weights.toarray()[:9409]
     b = ict_rigged.rig.skin_weights.toarray()[:9409]
     assert 100 * np.abs(a - b).mean(axis=0).mean() < 2.63
+    # every lash strip rides its lid, on both sides: one of the right upper lashes lies near enough the
+    # reference eyeball to have been taken for part of the eye, which turned it with the gaze and
+    # left it hanging open over the closed lid
+    ranges = {p["name"]: p["vertex_range"] for p in meta["parts"]}
+    attached = result.rig.anatomy.accessories.vertices
+    for side in ("left", "right"):
+        first, last = ranges[f"Eyelashes {side}"]
+        assert np.isin(np.arange(first, last + 1), attached).all(), side
+    parts = result.rig.mesh.parts
+    assert len(parts["eye_L"]) == len(parts["eye_R"])
 
 
 def test_ict_teeth_follow_head_or_jaw(ict, ict_rigged: RigResult) -> None:

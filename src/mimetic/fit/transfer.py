@@ -46,6 +46,12 @@ MAX_INFLUENCES = 4
 MIN_WEIGHT = 1e-6  # skin weights below this are 0 (no influence)
 MEMBERSHIP = 0.5  # interpolated indicator from which a vertex belongs to a region or wire set
 RIGID_SHARE = 0.6  # share of a separate part's vertices landing on one rigid reference part
+EYE_REACH = 1.5
+"""An eye's piece lies within this × the radius of the sphere through the eye's largest piece from
+its centre: a cornea's bulge reaches 1.22 on ICT (its sclera's sphere 1.42 cm); a lash strip reaches
+past it (one of ICT's right upper lashes, 0.6 of whose vertices lie nearest the reference eyeball,
+1.84) and rides its lid instead (``find_accessories``) rather than turning with the gaze and
+staying open over a closed lid."""
 MAX_TOOTH_SPAN = 2.0  # a mouth part taller than this × the distance between the tooth rows is soft
 RIGID_PARTS = {
     "eye_L": "eye_L",
@@ -144,7 +150,8 @@ def _separate_parts(
     name, and (n_user,) bool marking the soft ones inside the mouth.
 
     A connected component of the user's mesh is an eyeball when ``RIGID_SHARE`` of its vertices land
-    on a reference eyeball. It is in the mouth when that share lies in the box ``MOUTH_BOX_REL`` sets
+    on a reference eyeball and it lies within ``EYE_REACH`` of the sphere through that eye's largest
+    such piece. It is in the mouth when that share lies in the box ``MOUTH_BOX_REL`` sets
     about the mouth's landmarks (on the user's skin, not the fitted reference's mouth parts, which stand
     off a σ 3 identity's teeth by 1.5 cm). The mouth parts' centroid heights fall into two rows
     (the user's upper and lower teeth; 1-D 2-means): a part no taller than ``MAX_TOOTH_SPAN`` times
@@ -177,6 +184,7 @@ def _separate_parts(
     order = np.argsort(label, kind="stable")
     starts = np.flatnonzero(np.diff(label[order], prepend=-1))
     rigid: dict[str, list[np.ndarray]] = {}
+    eyes: dict[str, list[np.ndarray]] = {}
     mouth: list[tuple[np.ndarray, dict[str, float]]] = []
     soft = np.zeros(user.n_vertices, dtype=bool)
     for ids in np.split(order, starts[1:]):
@@ -186,9 +194,18 @@ def _separate_parts(
         share = dict(zip(names.tolist(), (counts / len(ids)).tolist(), strict=True))
         eye = max(("eye_L", "eye_R"), key=lambda p: share.get(p, 0.0))
         if share.get(eye, 0.0) >= RIGID_SHARE:
-            rigid.setdefault(eye, []).append(ids)
+            eyes.setdefault(eye, []).append(ids)
         elif np.mean(np.all((in_model[ids] >= box[0]) & (in_model[ids] <= box[1]), axis=1)) >= RIGID_SHARE:
             mouth.append((ids, share))
+    for eye, pieces in eyes.items():
+        centre, radius = _sphere(in_model[max(pieces, key=len)])
+        inside = [
+            ids
+            for ids in pieces
+            if np.linalg.norm(in_model[ids] - centre, axis=1).max() <= EYE_REACH * radius
+        ]
+        if inside:
+            rigid[eye] = inside
     if mouth:
         area = vertex_areas(in_model, user.faces)  # (n,) area centroids, whatever the sampling
         centres = np.array(
