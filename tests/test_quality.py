@@ -293,6 +293,40 @@ def test_lid_gap_closes_with_both_upper_lids_at_maximum(rig, wire, rest):
         assert quality.lid_gap(margins, closed).largest < 0.5 * quality.lid_gap(margins, rest).largest
 
 
+def test_seen_opening_of_a_slot_is_its_height_and_nothing_once_covered():
+    """A skin plane at z = 1 with a slot 8 wide and 4 tall over an eyeball plane at z = 0, and a lash
+    sheet at z = 2: from the front the eye shows the slot's height in every column (the lashes are
+    not skin); the slot closed hides it, and so does the sheet when it is passed as skin; a skin
+    behind the eyeball hides nothing (the whole window, 20 tall, is eyeball)."""
+    skin_v, skin_f = grid(24, 24)  # -12..12 in x and y, unit cells
+    skin_v += [-12.0, -12.0, 1.0]
+    centres = skin_v[skin_f].mean(axis=1)
+    slot = (np.abs(centres[:, 0]) < 4.0) & (np.abs(centres[:, 1]) < 2.0)
+    eye_v, eye_f = grid(6, 6, 4.0)
+    eye_v += [-12.0, -12.0, 0.0]
+    lash_v = eye_v + np.array([0.0, 0.0, 2.0])
+    vertices = np.vstack([skin_v, eye_v, lash_v])
+    eye, lashes = eye_f + len(skin_v), eye_f + len(skin_v) + len(eye_v)
+    corners = np.array([[-5.0, 0.0, 1.0], [5.0, 0.0, 1.0]])
+    heights = quality.seen_opening(vertices, eye, skin_f[~slot], corners)
+    assert heights.shape == (71,)  # 70 % of 10 wide, steps of 0.1: x in -3.5..3.5, inside the slot
+    np.testing.assert_allclose(heights, 4.0, atol=0.11)
+    assert quality.seen_opening(vertices, eye, skin_f, corners).max() == 0.0
+    assert quality.seen_opening(vertices, eye, np.vstack([skin_f[~slot], lashes]), corners).max() == 0.0
+    behind = vertices.copy()
+    behind[: len(skin_v), 2] = -1.0
+    np.testing.assert_allclose(quality.seen_opening(behind, eye, skin_f, corners), 20.1, atol=0.11)
+
+
+def test_seen_eyeball_open_at_rest_and_hidden_with_the_lids_closed(rig, wire, rest):
+    closed = wire.deform(quality.closed_lids_pose(rig))
+    for side in "LR":
+        open_ = quality.seen_eyeball(rig, rest, side)
+        shut = quality.seen_eyeball(rig, closed, side)
+        assert open_.max() > 0.2 * rig.scale * 0.1  # an open eye shows a band of eyeball
+        assert shut.max() <= 0.1 * open_.max()
+
+
 def test_lid_roughness_of_the_rest_margin_is_small(rig, wire, rest):
     margins = quality.find_lid_margins(rig, "L")
     assert quality.lid_roughness(margins, rest) < 0.01

@@ -39,6 +39,15 @@ Definitions (lengths in rig units, ``Rig.units``; the issue's targets are in cm)
   range both cover; gap = ``v(upper) − v(lower)`` per column. Negative: the upper margin is below
   the lower one (the margins *cross*). The targets: with both upper lids at their maximum, the
   largest gap ≤ 0.1 cm and none negative.
+* **Seen opening** (``seen_opening``, ``seen_eyeball``): the lids as a render shows them. Rays
+  along −Z on a grid of 1 % of the corners' distance over the middle 70 % of their x range; a ray
+  sees the eyeball (the rig's ``eye_<side>`` part) where it hits it before the skin (the largest
+  connected piece: lashes and see-through films do not hide it); per grid column the height seen.
+  The margins above follow vertices: where the upper lid's rim is found over only part of the eye,
+  or its rows fold past each other, the margins can meet while the eyeball shows (ICT identity s126
+  σ 2's left eye: margins 0.08 cm apart, 0.79 cm of eyeball seen), and a lower margin found on a
+  lid's inner roll can stay 0.1-0.27 cm below an upper lid that hides the eye (the generated heads).
+  Target: at the lids' maximum, nothing over 0.1 cm seen in any column.
 * **Margin roughness** (``margin_roughness``, ``lid_roughness``): the RMS distance of the upper
   margin's points (eye frame, without its first and last column, which can turn sharply into the
   corners) from least-squares polynomials of degree 4 in their rest ``u`` fitted to their ``v`` and
@@ -71,7 +80,7 @@ from mimetic.engines.basis import Basis
 from mimetic.errors import MimeticWarning
 from mimetic.mesh.geometry import edges_unique, face_normals
 from mimetic.mesh.model import SurfacePoint
-from mimetic.mesh.openings import EYE_STEP_REL, eye_opening, eyeball, margin_seeds, skin_faces
+from mimetic.mesh.openings import EYE_STEP_REL, eye_opening, eyeball, front_depth, margin_seeds, skin_faces
 from mimetic.rig.anatomy.lids import eye_frame
 from mimetic.rig.model import Channel, Rig
 
@@ -99,6 +108,8 @@ __all__ = [
     "margin_roughness",
     "matched_jaw_open",
     "rigid_motion",
+    "seen_eyeball",
+    "seen_opening",
     "triangle_flips",
     "upper_lip_follow",
 ]
@@ -119,6 +130,8 @@ MARGIN_SPAN = (0.15, 0.85)
 MARGIN_TOLERANCE = 2.0
 """A margin vertex lies within this many grid steps of the opening's edge (``mimetic.mesh.openings``)."""
 GAP_SAMPLES = 33
+SEEN_STEP_REL = 0.01
+"""The grid step (× the eye corners' distance) at which ``seen_opening`` looks at an eye."""
 ROUGHNESS_DEGREE = 4
 MIN_ROUGHNESS_POINTS = 7
 
@@ -569,6 +582,64 @@ def lid_roughness(margins: LidMargins, posed: np.ndarray) -> float:
     inner = slice(1, -1)  # the first and last columns turn into the corners
     points = margins.project(posed, margins.upper[inner])  # (k, 3) u, v, w
     return margin_roughness(margins.upper_u[inner], points[:, 1:], margins.width)
+
+
+def seen_opening(
+    posed: np.ndarray,
+    eye: np.ndarray,
+    skin: np.ndarray,
+    corners: np.ndarray,
+    *,
+    span: tuple[float, float] = MARGIN_SPAN,
+    step_rel: float = SEEN_STEP_REL,
+) -> np.ndarray:
+    """How much of an eyeball a viewer in front sees, column by column: the lids' opening as a render
+    shows it, whatever the margins' vertices do.
+
+    Parameters
+    ----------
+    posed : (n, 3) float64
+        Vertex positions, +Z toward the viewer, rig units.
+    eye, skin : (e, 3), (s, 3) int64
+        The eyeball's faces and the faces that can hide it (the skin; lashes and see-through films
+        are not counted).
+    corners : (2, 3) float64
+        The eye's corners (any order).
+    span : (float, float)
+        The part of the corners' x range looked at (``MARGIN_SPAN``: the corners themselves, where
+        the lids meet at rest, are left out).
+    step_rel : float
+        Grid step × the corners' distance.
+
+    Returns
+    -------
+    heights : (k,) float64
+        The height of the eyeball seen (in front of the skin, or with no skin in front) in each
+        column, a grid step wide, rig units; 0 where the lids cover it.
+    """
+    corners = np.asarray(corners, dtype=np.float64)
+    x0, x1 = np.sort(corners[:, 0])
+    width = float(np.linalg.norm(corners[1] - corners[0]))
+    step = step_rel * width
+    middle = corners[:, 1].mean()
+    low = np.array([x0 + span[0] * (x1 - x0), middle - width])
+    high = np.array([x0 + span[1] * (x1 - x0), middle + width])
+    seen_eye = front_depth(posed, eye, low, high, step).z  # (rows, columns), NaN: no hit
+    seen_skin = front_depth(posed, skin, low, high, step).z
+    visible = np.isfinite(seen_eye) & ~(seen_skin >= seen_eye)  # NaN skin compares False: nothing hides it
+    return visible.sum(axis=0) * step
+
+
+def seen_eyeball(rig: Rig, posed: np.ndarray, side: str) -> np.ndarray | None:
+    """``seen_opening`` of eye ``side`` of ``rig`` at ``posed`` (n, 3): (k,) heights, rig units, or None
+    when the rig has no eyeball for that eye (a face mask)."""
+    part = f"eye_{side}"
+    if part not in rig.mesh.parts or not len(rig.mesh.parts[part]):
+        return None
+    faces = rig.mesh.faces
+    corners = rig.landmark_positions([f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"])
+    skin = skin_faces(rig.mesh.vertices, faces)
+    return seen_opening(posed, faces[rig.mesh.parts[part]], skin, corners)
 
 
 def closed_lids_pose(rig: Rig) -> np.ndarray:
