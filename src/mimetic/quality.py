@@ -80,7 +80,7 @@ from mimetic.engines.basis import Basis
 from mimetic.errors import MimeticWarning
 from mimetic.mesh.geometry import edges_unique, face_normals
 from mimetic.mesh.model import SurfacePoint
-from mimetic.mesh.openings import EYE_STEP_REL, eye_opening, eyeball, front_depth, margin_seeds, skin_faces
+from mimetic.mesh.openings import EYE_STEP_REL, eye_opening, eyeball, margin_seeds, seen_eye, skin_faces
 from mimetic.rig.anatomy.lids import eye_frame
 from mimetic.rig.model import Channel, Rig
 
@@ -590,6 +590,7 @@ def seen_opening(
     skin: np.ndarray,
     corners: np.ndarray,
     *,
+    sphere: tuple[np.ndarray, float] | None = None,
     span: tuple[float, float] = MARGIN_SPAN,
     step_rel: float = SEEN_STEP_REL,
 ) -> np.ndarray:
@@ -605,6 +606,9 @@ def seen_opening(
         are not counted).
     corners : (2, 3) float64
         The eye's corners (any order).
+    sphere : ((3,) float64, float), optional
+        The eyeball's centre and radius: only its surface counts (``openings.EYE_SURFACE_SHARE``),
+        not pieces the eye part holds deep inside the corners (a caruncle).
     span : (float, float)
         The part of the corners' x range looked at (``MARGIN_SPAN``: the corners themselves, where
         the lids meet at rest, are left out).
@@ -618,16 +622,8 @@ def seen_opening(
         column, a grid step wide, rig units; 0 where the lids cover it.
     """
     corners = np.asarray(corners, dtype=np.float64)
-    x0, x1 = np.sort(corners[:, 0])
-    width = float(np.linalg.norm(corners[1] - corners[0]))
-    step = step_rel * width
-    middle = corners[:, 1].mean()
-    low = np.array([x0 + span[0] * (x1 - x0), middle - width])
-    high = np.array([x0 + span[1] * (x1 - x0), middle + width])
-    seen_eye = front_depth(posed, eye, low, high, step).z  # (rows, columns), NaN: no hit
-    seen_skin = front_depth(posed, skin, low, high, step).z
-    visible = np.isfinite(seen_eye) & ~(seen_skin >= seen_eye)  # NaN skin compares False: nothing hides it
-    return visible.sum(axis=0) * step
+    step = step_rel * float(np.linalg.norm(corners[1] - corners[0]))
+    return seen_eye(posed, eye, skin, corners, span, step, sphere).heights
 
 
 def seen_eyeball(rig: Rig, posed: np.ndarray, side: str) -> np.ndarray | None:
@@ -639,7 +635,9 @@ def seen_eyeball(rig: Rig, posed: np.ndarray, side: str) -> np.ndarray | None:
     faces = rig.mesh.faces
     corners = rig.landmark_positions([f"eye_inner_corner_{side}", f"eye_outer_corner_{side}"])
     skin = skin_faces(rig.mesh.vertices, faces)
-    return seen_opening(posed, faces[rig.mesh.parts[part]], skin, corners)
+    bone = rig.bone(part)
+    sphere = (bone.head, float(np.linalg.norm(bone.tail - bone.head)))
+    return seen_opening(posed, faces[rig.mesh.parts[part]], skin, corners, sphere=sphere)
 
 
 def closed_lids_pose(rig: Rig) -> np.ndarray:

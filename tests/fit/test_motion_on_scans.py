@@ -256,6 +256,24 @@ def test_lids_sunk_into_the_eyeballs_spheres_close_on_the_opening_the_front_sees
         assert gap.smallest > -0.02 and gap.largest <= widest  # cm
 
 
+def test_lids_close_where_the_front_sees_an_edge_the_rim_missed():
+    """An identity (s129 σ 2, a check head of the sweep) whose upper lid over the middle fifth of each
+    eye rolls back without a silhouette: its rim had no margin vertex there, the closing weights were
+    interpolated across the hole, and 0.45 cm of eyeball showed under the closed lid although the
+    margins' gap read 0.09. The closed lid is now looked at from the front and the edge seen over the
+    eyeball joins the margin (``closing_weights(eyeball_faces=...)``)."""
+    from mimetic.quality import closed_lids_pose, seen_eyeball
+
+    rig = identity_rig(129, 2.0)
+    engine = make_engine(rig, "wire")
+    rest = engine.deform(np.array([c.default for c in rig.channels]))
+    closed = engine.deform(closed_lids_pose(rig))
+    for side in "LR":
+        shown = seen_eyeball(rig, closed, side)
+        assert seen_eyeball(rig, rest, side).max() > 1.0  # cm: open, the eye shows
+        assert shown.max() < 0.2 and shown.mean() < 0.05  # cm; at most 0.45 and 0.21, on average 0.10 before
+
+
 def test_the_lips_bulge_as_one_in_anger_and_a_pucker(ict):
     """An identity (s110 σ1, a check head of the sweep) whose lips meet at the corners in slivers a
     tenth of a millimetre across: the lips' masses bulged along each vertex's own normal there, and

@@ -354,6 +354,7 @@ def close_lids(
             clearance=LID_CLEARANCE_REL * scale,
             thickness=LID_THICKNESS_REL * scale,
             rims=rims,
+            eyeball_faces=mesh.faces[mesh.parts[f"eye_{side}"]] if f"eye_{side}" in mesh.parts else None,
         )
     return out, bones
 

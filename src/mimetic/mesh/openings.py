@@ -7,7 +7,8 @@ area (eyeballs, lashes, teeth and films are separate pieces, or are ignored with
 
 * ``front_depth`` sees the skin along −Z on a regular grid: the depth (z) of the first hit per
   grid point (trimesh's ray-triangle test, on the grid points in each triangle's bounding box),
-  NaN where the ray misses.
+  NaN where the ray misses. ``seen_eye`` compares two such maps: where an eyeball shows in front
+  of the skin (a lid that does not cover it).
 * **Eyes** (``eye_opening``): a lid's margin is a silhouette seen from the front: past it the ray
   goes on into the eye socket or through a hole, so the depth jumps. The grid is split into pieces
   wherever neighbouring depths differ by more than ``JUMP_REL`` of the eye width; the skin around
@@ -56,6 +57,7 @@ from mimetic.mesh.memo import per_arrays
 __all__ = [
     "DepthMap",
     "Opening",
+    "SeenEye",
     "eye_opening",
     "eyeball",
     "front_depth",
@@ -65,9 +67,13 @@ __all__ = [
     "mouth_opening",
     "opening_margins",
     "opening_sides",
+    "seen_eye",
     "skin_faces",
 ]
 
+EYE_SURFACE_SHARE = 0.9
+"""A point of an eye part this far or farther from the eyeball's centre (× its radius) is on its
+surface (``seen_eye``); ICT's caruncle pieces in the inner corners lie at 0.75."""
 EYE_STEP_REL = 1 / 60
 """Grid spacing around an eye, × the eye width (0.5 mm on a 3 cm eye)."""
 EYE_WINDOW_REL = (0.85, 0.6)
@@ -115,6 +121,34 @@ class DepthMap:
     x: np.ndarray
     y: np.ndarray
     z: np.ndarray
+
+
+@dataclass(frozen=True)
+class SeenEye:
+    """Where an eyeball shows in front of the skin, seen along −Z (``seen_eye``): ``visible[i, j]`` at
+    (``x[j]``, ``y[i]``), ``x`` (nx,) and ``y`` (ny,) increasing with spacing ``step``, mesh units."""
+
+    x: np.ndarray
+    y: np.ndarray
+    visible: np.ndarray
+    step: float
+
+    @property
+    def heights(self) -> np.ndarray:
+        """(nx,) the height of eyeball seen in each column, mesh units."""
+        return self.visible.sum(axis=0) * self.step
+
+    @property
+    def tops(self) -> np.ndarray:
+        """(nx,) the highest point of eyeball seen in each column (NaN where none), mesh units."""
+        top = np.where(self.visible, self.y[:, None], -np.inf).max(axis=0)
+        return np.where(np.isfinite(top), top, np.nan)
+
+    @property
+    def bottoms(self) -> np.ndarray:
+        """(nx,) the lowest point of eyeball seen in each column (NaN where none), mesh units."""
+        bottom = np.where(self.visible, self.y[:, None], np.inf).min(axis=0)
+        return np.where(np.isfinite(bottom), bottom, np.nan)
 
 
 @dataclass(frozen=True)
@@ -236,6 +270,37 @@ def front_depth(
 
     z = first_hits(triangles, first, last, x, y, float(top), trimesh.tol.zero, trimesh.util.TOL_ZERO)
     return DepthMap(x, y, z)
+
+
+def seen_eye(
+    vertices: np.ndarray,
+    eye: np.ndarray,
+    skin: np.ndarray,
+    corners: np.ndarray,
+    span: tuple[float, float],
+    step: float,
+    sphere: tuple[np.ndarray, float] | None = None,
+) -> SeenEye:
+    """Where the eyeball's faces ``eye`` (e, 3) show in front of the ``skin`` faces (s, 3) (or with no
+    skin in front) of ``vertices`` (n, 3), seen along −Z on a grid of spacing ``step`` over the part
+    ``span`` (fractions) of the x range between the eye's ``corners`` (2, 3), as high and low as the
+    corners are apart about their mean height. Lashes and films hide nothing unless passed as skin.
+    With the eyeball's ``sphere`` (centre (3,), radius), only what is seen of its surface counts
+    (``EYE_SURFACE_SHARE``): not a caruncle or tear film the eye part holds deep in the corner."""
+    corners = np.asarray(corners, dtype=np.float64)
+    x0, x1 = np.sort(corners[:, 0])
+    width = float(np.linalg.norm(corners[1] - corners[0]))
+    middle = corners[:, 1].mean()
+    low = np.array([x0 + span[0] * (x1 - x0), middle - width])
+    high = np.array([x0 + span[1] * (x1 - x0), middle + width])
+    ball = front_depth(vertices, eye, low, high, step)
+    cover = front_depth(vertices, skin, low, high, step).z
+    visible = np.isfinite(ball.z) & ~(cover >= ball.z)  # NaN skin compares False: nothing hides it
+    if sphere is not None:
+        centre, radius = sphere
+        hit = np.stack(np.broadcast_arrays(ball.x[None, :], ball.y[:, None], ball.z), axis=-1)
+        visible &= np.linalg.norm(hit - centre, axis=-1) >= EYE_SURFACE_SHARE * radius
+    return SeenEye(ball.x, ball.y, visible, step)
 
 
 def _pieces(z: np.ndarray, jump: float) -> np.ndarray:

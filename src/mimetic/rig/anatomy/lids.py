@@ -57,12 +57,14 @@ from mimetic.head.shape import smoothstep
 from mimetic.mesh.geometry import connected_components, edges_unique
 from mimetic.mesh.openings import (
     EYE_STEP_REL,
+    SeenEye,
     eye_opening,
     eyeball,
     gaze_rim,
     margin_distance,
     margin_seeds,
     opening_sides,
+    seen_eye,
     skin_faces,
 )
 
@@ -127,6 +129,22 @@ CLOSING_RESERVE = 0.85
 its margin closes within this share of the closing angle; the per-column weights do the rest. Not
 fitted (room for the sculptor and the smoothing of the weights); checked on ICT identities s2-s6 σ2
 and s101-s106 (``benchmarks/sweep_motion.py``)."""
+SIGHT_SPAN = (0.1, 0.9)
+"""The part of the corners' x range where the closed lid is checked by sight (``closing_weights``)."""
+SIGHT_TOL_REL = 0.01
+"""... and eyeball showing over more than this × the corners' distance in a column (0.03 cm on ICT's
+eyes, a third of the sweep's 0.1 cm goal) opens that column's lid edge again."""
+SIGHT_LOWER_REL = 0.05
+"""... where what shows reaches down to within this × the corners' distance of the lower margin: an
+eyeball seen through the middle of a closed lid (a cornea the lid's skin passes through, ICT
+identity s145 σ 3) is not a lid edge left open, and dragging the skin above it down pinched the lid."""
+SIGHT_REACH_REL = 0.15
+"""... and only a vertex within this × the corners' distance of the upper rim along the skin (half the
+lid band, ``LID_BAND_REL``) is taken for the lid's edge: farther up it is the lid's skin, seen over the
+eyeball where the lid passes through a bulging cornea (s145 σ 3: vertices 0.15-0.31 up, whose pull
+pinched the lid into a fold); the edges missed by the rim lie within 0.12 (s129 σ 2)."""
+SIGHT_PASSES = 3
+"""At most this many times are the lid edges seen over the eyeball added to the margin."""
 LID_BAND_REL = 0.3
 """The upper lid's skin follows its margin to this distance from it along the skin, × the eye's width
 (the corners' distance; 0.9 cm on ICT's 3 cm eyes), fading from 1 at the margin (``lid_profile``).
@@ -641,6 +659,7 @@ def closing_weights(
     clearance: float,
     thickness: float,
     rims: LidRims | None = None,
+    eyeball_faces: np.ndarray | None = None,
 ) -> np.ndarray:
     """Skin weights whose upper-lid column closes eye ``side`` onto its lower margin at ``closed_rad``.
 
@@ -669,6 +688,13 @@ def closing_weights(
         it keeps for each lid vertex, rig units (``LID_CLEARANCE_REL``, ``LID_THICKNESS_REL``).
     rims : LidRims, optional
         ``lid_rims`` of this eye with these arguments, when the caller has them already.
+    eyeball_faces : (e, 3) int64, optional
+        The eyeball's faces. Given, the closed lid is looked at from the front: where the eyeball
+        still shows (``SIGHT_TOL_REL``), the upper lid's vertex on the edge of what shows joins the
+        margin and the weights are solved again (``SIGHT_PASSES``). The rim misses a lid's edge
+        where it rolls back without a silhouette (over a cornea bulging level with it: ICT identity
+        s129 σ 2's left eye had no upper margin over its middle fifth, and that stretch stopped 0.45
+        cm short).
 
     Returns
     -------
@@ -693,62 +719,138 @@ def closing_weights(
         )
 
     low = line(lower)
+    # the lower margin itself, its dips not bridged: no vertex found by sight closes past it
+    column = LID_COLUMN_REL * rims.width
+    floor = np.column_stack(lower_line(rims.uvw(vertices[lower]), column, column))
     turn = _rotation_x(closed_rad)
 
-    def landing(ids: np.ndarray, low: np.ndarray) -> np.ndarray:
-        """The lid weight (k,) that brings each vertex of ``ids`` onto the line ``low`` (j, 2) (u, v)
-        at the closing angle, skinned as the engines skin (sculptor included), or its whole budget."""
+    def skinned(ids: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Where the vertices ``ids`` (k,) go at the closing angle with lid weights ``w`` (k,), skinned
+        as the engines skin (sculptor included), (k, 3)."""
         p = vertices[ids]
         swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
         # the sculptor keeps a lid vertex clear of the eyeball at rest at its rest height, up to thickness
         dist, surface = eyeball_surface(p, centre, gaze, radius)
         height = dist - surface - clearance  # < 0: inside the eyeball at rest, never sculpted
         keep = np.where(height >= 0, clearance + np.minimum(height, thickness), -np.inf)
-        lo, hi = np.zeros(len(p)), out[ids, lid] + out[ids, head]
+        return sculpt_lids(p + w[:, None] * swing, centre, gaze, radius, keep)
+
+    def landing(ids: np.ndarray, low: np.ndarray) -> np.ndarray:
+        """The lid weight (k,) that brings each vertex of ``ids`` onto the line ``low`` (j, 2) (u, v)
+        at the closing angle, or its whole budget."""
+        lo, hi = np.zeros(len(ids)), out[ids, lid] + out[ids, head]
         for _ in range(BISECTIONS):  # the lid comes down as its weight grows
             mid = 0.5 * (lo + hi)
-            uvw = rims.uvw(sculpt_lids(p + mid[:, None] * swing, centre, gaze, radius, keep))
+            uvw = rims.uvw(skinned(ids, mid))
             above = uvw[:, 1] > np.interp(uvw[:, 0], low[:, 0], low[:, 1])
             lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
         return 0.5 * (lo + hi)
 
-    p = vertices[margin]  # (k, 3)
-    needed = landing(margin, low)  # (k,)
-    # the lid moves as its edge does: each vertex on the upper lid's side of the opening takes its
-    # column's closing weight times its share of the margin's motion, which falls with its distance
-    # from the margin along the skin (``lid_profile``: the skin of the lid, and the lid's inner
-    # surface behind its edge, but not the brow nor the socket behind the eyeball)
-    u = rims.uvw(p)[:, 0] / rims.width
-    closing = _smooth(u, needed)
     skin = skin_faces(vertices, faces)
-    share = lid_profile(vertices, skin, rims.upper[0], lower, LID_BAND_REL * rims.width)
-    ids = np.flatnonzero((share > 0) | (out[:, lid] > 0))
-    at = rims.uvw(vertices[ids])[:, 0] / rims.width
-    # past the ends: the end's. Never below the margin's own weights (linear between its columns):
-    # the spline rounds off the steep rise of the weights into the inner corner, which left the lid
-    # short of the lower one there; a column that would close too far the contact stops
-    order = np.argsort(u, kind="stable")
-    t = np.clip(at, u.min(), u.max())
-    want = np.clip(np.maximum(closing(t), np.interp(t, u[order], needed[order])), 0.0, None)
-    total = out[ids, lid] + out[ids, head]  # a vertex the head bone does not weight only gives
-    new = np.minimum(share[ids] * want, total)
-    # what the front sees of the upper margin never closes past what it sees of the lower (on a slit
-    # of an eye the regions' rims are the margins, and a canthus's rim deep behind them needs more)
-    seen = np.flatnonzero(np.isin(ids, rims.upper_seen))
-    if len(seen) and len(rims.lower_seen) >= MIN_MARGIN:
-        new[seen] = np.minimum(new[seen], landing(ids[seen], line(rims.lower_seen)))
-    given = out[ids, lid] - new
-    out[ids, lid], out[ids, head] = new, total - new
-    # where the head bone did not weight a vertex its other bones share what the lid gives, so no
-    # vertex gains an influence
-    others = out[ids].copy()
-    others[:, [lid, head]] = 0.0
-    room = others.sum(axis=1)
-    spread = (weights[ids, head] == 0) & (room > 0) & (given > 0)
-    rows = ids[spread]
-    out[rows, head] = 0.0
-    out[rows] += others[spread] * (given[spread] / room[spread])[:, None]
-    return out
+
+    def solve(margin: np.ndarray, *, capped: bool = False) -> np.ndarray:
+        """The weights (n, b) that close the lid with ``margin`` (k,) as its edge; ``capped``: no
+        vertex in front of the eye's centre closes past the lower margin (``floor``: the edges found
+        by sight need more than the rim's columns beside them, which the spline shares out)."""
+        out = np.array(weights, dtype=np.float64, copy=True)
+        edge = np.union1d(rims.upper[0], margin)
+        share = lid_profile(vertices, skin, edge, lower, LID_BAND_REL * rims.width)
+        ids = np.flatnonzero((share > 0) | (out[:, lid] > 0))
+        p = vertices[margin]  # (k, 3)
+        needed = landing(margin, low)  # (k,)
+        # the lid moves as its edge does: each vertex on the upper lid's side of the opening takes its
+        # column's closing weight times its share of the margin's motion, which falls with its distance
+        # from the margin along the skin (``lid_profile``: the skin of the lid, and the lid's inner
+        # surface behind its edge, but not the brow nor the socket behind the eyeball)
+        u = rims.uvw(p)[:, 0] / rims.width
+        closing = _smooth(u, needed)
+        at = rims.uvw(vertices[ids])[:, 0] / rims.width
+        # past the ends: the end's. Never below the margin's own weights (linear between its columns):
+        # the spline rounds off the steep rise of the weights into the inner corner, which left the lid
+        # short of the lower one there; a column that would close too far the contact stops
+        order = np.argsort(u, kind="stable")
+        t = np.clip(at, u.min(), u.max())
+        want = np.clip(np.maximum(closing(t), np.interp(t, u[order], needed[order])), 0.0, None)
+        total = out[ids, lid] + out[ids, head]  # a vertex the head bone does not weight only gives
+        new = np.minimum(share[ids] * want, total)
+        # what the front sees of the upper margin never closes past what it sees of the lower (on a slit
+        # of an eye the regions' rims are the margins, and a canthus's rim deep behind them needs more)
+        seen = np.flatnonzero(np.isin(ids, rims.upper_seen))
+        if len(seen) and len(rims.lower_seen) >= MIN_MARGIN:
+            new[seen] = np.minimum(new[seen], landing(ids[seen], line(rims.lower_seen)))
+        if capped:
+            front = np.flatnonzero((vertices[ids] - centre) @ gaze > 0)
+            new[front] = np.minimum(new[front], landing(ids[front], floor))
+            # a contact vertex past the line the contact holds it on opens its whole column again
+            contact = np.flatnonzero(np.isin(ids, rims.upper[0]))
+            new[contact] = np.minimum(new[contact], landing(ids[contact], low))
+        given = out[ids, lid] - new
+        out[ids, lid], out[ids, head] = new, total - new
+        # where the head bone did not weight a vertex its other bones share what the lid gives, so no
+        # vertex gains an influence
+        others = out[ids].copy()
+        others[:, [lid, head]] = 0.0
+        room = others.sum(axis=1)
+        spread = (weights[ids, head] == 0) & (room > 0) & (given > 0)
+        rows = ids[spread]
+        out[rows, head] = 0.0
+        out[rows] += others[spread] * (given[spread] / room[spread])[:, None]
+        return out
+
+    out = solve(margin)
+    if eyeball_faces is None or not len(eyeball_faces):
+        return out
+    eyeball_faces = np.asarray(eyeball_faces, dtype=np.int64)
+    near_rim = np.isfinite(margin_distance(vertices, skin, rims.upper[0], SIGHT_REACH_REL * rims.width))
+    best, best_open = out, np.inf
+    for _ in range(SIGHT_PASSES + 1):
+        closed = vertices.copy()
+        ids = np.flatnonzero(out[:, lid] > 0)
+        closed[ids] = skinned(ids, out[ids, lid])
+        seen = seen_eye(
+            closed, eyeball_faces, skin, corners, SIGHT_SPAN, SIGHT_TOL_REL * rims.width, (centre, radius)
+        )
+        shown = float(seen.heights.max(initial=0.0))
+        if shown >= best_open:  # a pass that shows more is not kept, and the next would not help
+            break
+        best, best_open = out, shown
+        edge = np.setdiff1d(_seen_edge(seen, closed, ids, centre, gaze, rims.width, lower, near_rim), margin)
+        if not len(edge):
+            break
+        margin = np.concatenate([margin, edge])
+        out = solve(margin, capped=True)
+    return best
+
+
+def _seen_edge(
+    seen: SeenEye,
+    closed: np.ndarray,
+    ids: np.ndarray,
+    centre: np.ndarray,
+    gaze: np.ndarray,
+    width: float,
+    lower: np.ndarray,
+    near_rim: np.ndarray,
+) -> np.ndarray:
+    """The upper lid's edge over the eyeball still ``seen`` from the front at ``closed`` (n, 3): in
+    each column showing more than ``SIGHT_TOL_REL`` × ``width`` of it, down to the lower margin
+    ``lower`` (j,) (``SIGHT_LOWER_REL``), the lowest vertex of ``ids`` in front of the eye's ``centre``
+    (along ``gaze``) and ``near_rim`` (n,) bool above the highest point seen, within two of the eye
+    grid's steps of the column. Sorted, unique (k,) int64."""
+    heights, tops = seen.heights, seen.tops
+    order = np.argsort(closed[lower, 0])
+    floor = np.interp(seen.x, closed[lower[order], 0], closed[lower[order], 1])  # the lower margin's height
+    open_ = (heights > SIGHT_TOL_REL * width) & (seen.bottoms <= floor + SIGHT_LOWER_REL * width)
+    p = closed[ids]
+    ids = ids[((p - centre) @ gaze > 0) & near_rim[ids]]
+    p = closed[ids]
+    reach = 2 * EYE_STEP_REL * width
+    edge = []
+    for j in np.flatnonzero(open_):
+        near = np.flatnonzero((np.abs(p[:, 0] - seen.x[j]) <= reach) & (p[:, 1] >= tops[j]))
+        if len(near):
+            edge.append(ids[near[np.argmin(p[near, 1])]])
+    return np.unique(np.asarray(edge, dtype=np.int64))
 
 
 def lid_profile(
