@@ -31,7 +31,9 @@ lids):
   weights), and every other upper-lid vertex keeps its share of its column's margin weight, but
   never more than brings the upper margin the front sees onto the lower margin the front sees. A
   partial closure (a wink) is then a smooth curve, and a skinned export without the contact closes
-  too.
+  too. Given the eyeball, the closed lid is then *looked at* from the front (``seen_eye``): where
+  eyeball still shows down to the lower margin, the lid vertex on the edge of what shows (near the
+  rim) joins the margin and the weights are solved again, keeping the pass that shows least.
 * **Pivot** (``closing_pivot``, used by the transfer): an opening taller than the closing angle can
   close turning about the eye's centre has its upper lid turn about a point set back behind it, so
   the margin travels farther and slides over the eyeball.
