@@ -304,6 +304,8 @@ def test_check_scheduler_says_what_is_wrong_with_each_address(listeners, monkeyp
 def test_ctrl_c_in_a_batch_is_one_line_and_exit_code_130(tmp_path):
     """SIGINT to the whole process group, as a terminal's Ctrl-C sends it, once the items run: the
     batch says "interrupted" and nothing else (its workers stay quiet), exit code 130."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:  # inherited by the batch, which then never hears it
+        pytest.skip("SIGINT is ignored in this process (a shell's background job): Ctrl-C cannot be tested")
     head = small_head(0, RESOLUTION)
     for k in range(40):
         save_mesh(head.mesh, tmp_path / f"h{k:02d}.obj")
