@@ -313,6 +313,12 @@ def test_seen_opening_of_a_slot_is_its_height_and_nothing_once_covered():
     np.testing.assert_allclose(heights, 4.0, atol=0.11)
     assert quality.seen_opening(vertices, eye, skin_f, corners).max() == 0.0
     assert quality.seen_opening(vertices, eye, np.vstack([skin_f[~slot], lashes]), corners).max() == 0.0
+    # with the eyeball's sphere, only hits on its surface count (not a piece deep inside it)
+    far, near = (np.array([0.0, 0.0, -20.0]), 20.0), (np.array([0.0, 0.0, -1.0]), 20.0)
+    np.testing.assert_allclose(
+        quality.seen_opening(vertices, eye, skin_f[~slot], corners, sphere=far), heights
+    )
+    assert quality.seen_opening(vertices, eye, skin_f[~slot], corners, sphere=near).max() == 0.0
     behind = vertices.copy()
     behind[: len(skin_v), 2] = -1.0
     np.testing.assert_allclose(quality.seen_opening(behind, eye, skin_f, corners), 20.1, atol=0.11)

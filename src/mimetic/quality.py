@@ -41,8 +41,9 @@ Definitions (lengths in rig units, ``Rig.units``; the issue's targets are in cm)
   largest gap ≤ 0.1 cm and none negative.
 * **Seen opening** (``seen_opening``, ``seen_eyeball``): the lids as a render shows them. Rays
   along −Z on a grid of 1 % of the corners' distance over the middle 70 % of their x range; a ray
-  sees the eyeball (the rig's ``eye_<side>`` part) where it hits it before the skin (the largest
-  connected piece: lashes and see-through films do not hide it); per grid column the height seen.
+  sees the eyeball (the rig's ``eye_<side>`` part, its surface: at least 0.9 of the eye bone's
+  radius from its centre) where it hits it before the skin (the largest connected piece: lashes and
+  see-through films do not hide it); per grid column the height seen.
   The margins above follow vertices: where the upper lid's rim is found over only part of the eye,
   or its rows fold past each other, the margins can meet while the eyeball shows (ICT identity s126
   σ 2's left eye: margins 0.08 cm apart, 0.79 cm of eyeball seen), and a lower margin found on a
@@ -627,8 +628,9 @@ def seen_opening(
 
 
 def seen_eyeball(rig: Rig, posed: np.ndarray, side: str) -> np.ndarray | None:
-    """``seen_opening`` of eye ``side`` of ``rig`` at ``posed`` (n, 3): (k,) heights, rig units, or None
-    when the rig has no eyeball for that eye (a face mask)."""
+    """``seen_opening`` of eye ``side`` of ``rig`` at ``posed`` (n, 3), a pose with the head and the eyes
+    at rest (the eyeball's sphere is the eye bone's at rest): (k,) heights, rig units, or None when
+    the rig has no eyeball for that eye (a face mask)."""
     part = f"eye_{side}"
     if part not in rig.mesh.parts or not len(rig.mesh.parts[part]):
         return None

