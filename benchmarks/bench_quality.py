@@ -85,6 +85,7 @@ from mimetic.quality import (
     lip_faces,
     margin_gap,
     matched_jaw_open,
+    seen_eyeball,
     triangle_flips,
     upper_lip_follow,
 )
@@ -404,6 +405,8 @@ def measure(case: Case, engine_name: str, reference: Reference, rows: Rows) -> N
     left = margins[0]
     rough_rest, rough_wink = lid_roughness(left, rest), lid_roughness(left, wink)
     wink_gap = lid_gap(left, wink, tolerance=CROSSING_TOL_CM)
+    seen = [seen_eyeball(rig, closed, side) for side in ("L", "R")]
+    shown = max(float(h.max()) for h in seen) if all(h is not None and len(h) for h in seen) else None
     rows.lids.append(
         (
             case.name,
@@ -414,8 +417,8 @@ def measure(case: Case, engine_name: str, reference: Reference, rows: Rows) -> N
             ", ".join(crossing) if crossing else "no",
             f"{wink_gap.smallest:+.2f} .. {wink_gap.largest:+.2f}",
             f"{100 * rough_wink:.2f} % / {100 * rough_rest:.2f} %",
-            verdicts(gap=largest <= GOAL_LID_GAP_CM, crossing=not crossing),
-            "",
+            "" if shown is None else f"{shown:.2f}",
+            verdicts(gap=(largest if shown is None else shown) <= GOAL_LID_GAP_CM, crossing=not crossing),
         )
     )
 
@@ -480,8 +483,9 @@ def tables_abc(cases: list[Case], reference: Reference) -> None:
         "c. lids: gap per margin column, v(upper) − v(lower) along the eye's up axis (cm, negative = "
         "crossed), both eyes; closed = both upper lids at their maximum; wink = the library's 'wink' "
         "(left eye); roughness = RMS deviation of the left upper margin from a smooth curve, % of the "
-        f"lid width, in the wink / at rest; target closed: gap ≤ {GOAL_LID_GAP_CM} cm, none below "
-        f"−{CROSSING_TOL_CM} cm",
+        f"lid width, in the wink / at rest; seen = the most eyeball a front view shows in a column, "
+        f"closed (quality.seen_eyeball); target closed: seen (the margins' gap without eyeballs) ≤ "
+        f"{GOAL_LID_GAP_CM} cm, no margin below −{CROSSING_TOL_CM} cm",
         (
             "head",
             "engine",
@@ -491,8 +495,8 @@ def tables_abc(cases: list[Case], reference: Reference) -> None:
             "crossed",
             "wink gap (L)",
             "roughness wink / rest",
+            "seen closed",
             "verdict",
-            "",
         ),
         rows.lids,
     )
