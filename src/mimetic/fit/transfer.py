@@ -37,6 +37,7 @@ from mimetic.rig.anatomy.lids import (
     LID_CLEARANCE_REL,
     LID_THICKNESS_REL,
     closing_pivot,
+    eye_sphere,
     eyeball_sphere,
     lid_rims,
 )
@@ -106,15 +107,6 @@ def top_influences(weights: np.ndarray, limit: int) -> np.ndarray:
     dense[dense < MIN_WEIGHT] = 0.0
     dense /= dense.sum(axis=1, keepdims=True)
     return dense
-
-
-def _sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
-    """Least-squares sphere (centre (3,), radius) through points (k, 3)."""
-    a = np.column_stack([2 * points, np.ones(len(points))])
-    b = (points**2).sum(axis=1)
-    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
-    centre = sol[:3]
-    return centre, float(np.sqrt(max(sol[3] + centre @ centre, 0.0)))
 
 
 def _correspond(mesh_ref: Mesh, faces: np.ndarray, points: np.ndarray, normals: np.ndarray) -> ClosestPoints:
@@ -198,7 +190,7 @@ def _separate_parts(
         elif np.mean(np.all((in_model[ids] >= box[0]) & (in_model[ids] <= box[1]), axis=1)) >= RIGID_SHARE:
             mouth.append((ids, share))
     for eye, pieces in eyes.items():
-        centre, radius = _sphere(in_model[max(pieces, key=len)])
+        centre, radius = eye_sphere(in_model[max(pieces, key=len)])
         inside = [
             ids
             for ids in pieces
@@ -555,7 +547,7 @@ def transfer_rig(
         side = bone.name[-1]
         eye = rigid.get(f"eye_{side}") if bone.name.startswith(("eye_", "eyelid_")) else None
         if eye is not None and len(eye) >= 10:
-            centre, radius = _sphere(rig_vertices[eye])
+            centre, radius = eye_sphere(rig_vertices[eye])
             tail = centre + (tail - head) / np.linalg.norm(tail - head) * radius
             head = centre
         bones.append(Bone(bone.name, bone.parent, head, tail))
