@@ -85,7 +85,7 @@ from mimetic.quality import (
     lip_faces,
     margin_gap,
     matched_jaw_open,
-    seen_eyeball,
+    most_eyeball_seen,
     triangle_flips,
     upper_lip_follow,
 )
@@ -405,8 +405,7 @@ def measure(case: Case, engine_name: str, reference: Reference, rows: Rows) -> N
     left = margins[0]
     rough_rest, rough_wink = lid_roughness(left, rest), lid_roughness(left, wink)
     wink_gap = lid_gap(left, wink, tolerance=CROSSING_TOL_CM)
-    seen = [seen_eyeball(rig, closed, side) for side in ("L", "R")]
-    shown = max(float(h.max()) for h in seen) if all(h is not None and len(h) for h in seen) else None
+    shown = most_eyeball_seen(rig, closed)
     rows.lids.append(
         (
             case.name,

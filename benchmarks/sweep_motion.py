@@ -53,7 +53,7 @@ from mimetic.quality import (
     lid_gap,
     lip_faces,
     matched_jaw_open,
-    seen_eyeball,
+    most_eyeball_seen,
     triangle_flips,
 )
 from mimetic.testing import triangle_soup
@@ -140,9 +140,8 @@ def measure(case: Case, group: str, engine_name: str, reference: Reference) -> R
     lids, crossing, seen = None, "", None
     if all(m.usable for m in margins):
         closed = engine.deform(closed_lids_pose(rig))
-        heights = [seen_eyeball(rig, closed, side) for side in ("L", "R")]
-        if all(h is not None and len(h) for h in heights):
-            seen = max(float(h.max()) for h in heights) * cm
+        shown = most_eyeball_seen(rig, closed)
+        seen = None if shown is None else shown * cm
         gaps = [lid_gap(m, closed, tolerance=CROSSING_TOL_CM / cm) for m in margins]
         lids = (min(g.smallest for g in gaps) * cm, max(g.largest for g in gaps) * cm)
         crossing = ", ".join(g.side for g in gaps if g.crossing)

@@ -331,6 +331,9 @@ def test_seen_eyeball_open_at_rest_and_hidden_with_the_lids_closed(rig, wire, re
         shut = quality.seen_eyeball(rig, closed, side)
         assert open_.max() > 0.2 * rig.scale * 0.1  # an open eye shows a band of eyeball
         assert shut.max() <= 0.1 * open_.max()
+    assert quality.most_eyeball_seen(rig, closed) == max(
+        quality.seen_eyeball(rig, closed, s).max() for s in "LR"
+    )
 
 
 def test_lid_roughness_of_the_rest_margin_is_small(rig, wire, rest):

@@ -108,6 +108,7 @@ __all__ = [
     "margin_gap",
     "margin_roughness",
     "matched_jaw_open",
+    "most_eyeball_seen",
     "rigid_motion",
     "seen_eyeball",
     "seen_opening",
@@ -640,6 +641,15 @@ def seen_eyeball(rig: Rig, posed: np.ndarray, side: str) -> np.ndarray | None:
     bone = rig.bone(part)
     sphere = (bone.head, float(np.linalg.norm(bone.tail - bone.head)))
     return seen_opening(posed, faces[rig.mesh.parts[part]], skin, corners, sphere=sphere)
+
+
+def most_eyeball_seen(rig: Rig, posed: np.ndarray) -> float | None:
+    """The most eyeball ``seen_eyeball`` shows in any column of either eye at ``posed`` (n, 3), rig
+    units, or None when the rig lacks an eyeball."""
+    heights = [seen_eyeball(rig, posed, side) for side in ("L", "R")]
+    if not all(h is not None and len(h) for h in heights):
+        return None
+    return max(float(h.max()) for h in heights)
 
 
 def closed_lids_pose(rig: Rig) -> np.ndarray:
