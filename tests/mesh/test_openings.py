@@ -81,6 +81,30 @@ def test_closed_lips_are_found_as_a_valley_between_two_bulges():
     assert opening.upper[0, 0] < -1.0 and opening.upper[-1, 0] > 1.0
 
 
+def test_lips_parted_over_a_cavity_have_their_margins_on_the_lips_not_on_the_cavity():
+    # the lips above, parted by a slit over the left half of the mouth that shows a wall 8 units
+    # behind them (a mouth's cavity): the margins there are the slit's edges, on the lips
+    x, y = np.meshgrid(np.linspace(-3, 3, 121), np.linspace(-1.5, 1.5, 61))
+    lip = np.clip(1 - (x / 2) ** 2, 0, None) * 0.3 * np.exp(-((np.abs(y) - 0.4) ** 2) / 0.05)
+    vertices = np.column_stack([x.ravel(), y.ravel(), lip.ravel()])
+    i = np.arange(60)[:, None] * 121 + np.arange(120)[None]
+    quads = np.stack([i, i + 1, i + 122, i + 121], axis=-1).reshape(-1, 4)
+    grid = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    centre = vertices[grid].mean(axis=1)
+    lips = grid[~((np.abs(centre[:, 1]) < 0.1) & (centre[:, 0] < 0.0))]
+    wall = vertices.copy()
+    wall[:, 2] = -8.0
+    vertices = np.concatenate([vertices, wall])
+    faces = np.concatenate([lips, grid + len(wall)])
+    opening = mouth_opening(vertices, faces, np.array([[-2.0, 0, 0], [2.0, 0, 0]]))
+    assert opening is not None
+    assert opening.width == pytest.approx(4.0, rel=0.1)
+    assert (opening.upper[:, 2] > -0.5).all() and (opening.lower[:, 2] > -0.5).all()
+    slit = opening.upper[:, 0] < -0.5
+    assert (opening.upper[slit, 1] > 0.05).all() and (opening.lower[slit, 1] < -0.05).all()
+    assert np.abs(opening.upper[~slit & (opening.upper[:, 0] > 0.5), 1]).max() <= 0.1
+
+
 # --------------------------------------------------------------------------- ICT-FaceKit
 
 IBUG_EYES = {"L": (42, 45), "R": (39, 36)}  # (inner, outer) corners; the subject's left is +x

@@ -23,7 +23,8 @@ area (eyeballs, lashes, teeth and films are separate pieces, or are ignored with
   the front; it ends at the commissures, where the valley under both lips falls below
   ``VALLEY_REL`` of the mouth width and no rim follows it (breaks shorter than ``VALLEY_GAP_REL``
   bridged), and never runs past the landmark corners. Where the lips are apart the seam runs
-  through the gap, and the gap's top and bottom are the margins.
+  through the gap (nothing behind it, or the mouth's cavity far behind: ``THROUGH_REL``), and the
+  gap's top and bottom are the margins.
 
 The constants below were chosen on ICT-FaceKit's neutral and identities s1-s2 at σ 1, s2-s6 at σ 2
 and s4 at σ 3 (``benchmarks/sweep_motion.py``'s calibration heads); that benchmark reports them on
@@ -98,6 +99,10 @@ CORNER_SLACK_REL = 0.05
 """The seam ends at most this × the mouth width beyond either corner."""
 VALLEY_GAP_REL = 0.15
 """Breaks in the valley up to this × the mouth width long are bridged."""
+THROUGH_REL = 0.25
+"""A seam point more than this × the mouth width behind the lips on both sides is seen through a gap
+between them (into the mouth's cavity), not where they touch: touching lips leave valleys up to 0.11
+× the width deep on ICT and its identities, a gap shows the cavity about 2 widths behind."""
 RIM_GAIN = 0.05
 """A grid point next to the skin's rim counts as a valley this × the mouth width deep (the seam's
 cost; a clear valley between parted lips is deeper)."""
@@ -538,15 +543,18 @@ def mouth_opening(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) 
     keep = columns[first : last + 1]
     # not past the corners the landmarks give: a crease running on from a commissure is no lip
     keep = keep[np.abs(depth.x[keep] - corners[:, 0].mean()) <= (0.5 + CORNER_SLACK_REL) * width]
-    # through a gap the margins are its top and bottom; where the lips touch, the valley's floor
-    gap = np.isinf(z) | (z < floor[None] + 0.5 * (np.minimum(above, below) - floor)[None])
+    # through a gap the margins are its top and bottom; where the lips touch, the valley's floor. A
+    # gap shows nothing (a mask's open mouth) or the mouth's cavity far behind the lips
+    with np.errstate(invalid="ignore"):  # inf - inf where a column shows nothing at all
+        through = np.isinf(floor) | (np.minimum(above, below) - floor > THROUGH_REL * width)
+        gap = np.isinf(z) | (z < floor[None] + 0.5 * (np.minimum(above, below) - floor)[None])
     top, bottom = path.copy(), path.copy()
     for c in keep:
-        while top[c] + 1 < len(depth.y) and gap[top[c] + 1, c] and np.isinf(z[path[c], c]):
+        while top[c] + 1 < len(depth.y) and gap[top[c] + 1, c] and through[c]:
             top[c] += 1
-        while bottom[c] > 0 and gap[bottom[c] - 1, c] and np.isinf(z[path[c], c]):
+        while bottom[c] > 0 and gap[bottom[c] - 1, c] and through[c]:
             bottom[c] -= 1
-    touching = np.isfinite(floor[keep])
+    touching = ~through[keep]
     up_z = np.where(touching, floor[keep], depth.z[np.minimum(top[keep] + 1, len(depth.y) - 1), keep])
     low_z = np.where(touching, floor[keep], depth.z[np.maximum(bottom[keep] - 1, 0), keep])
     x = depth.x[keep]
