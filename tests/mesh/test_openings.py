@@ -13,6 +13,7 @@ from mimetic.mesh.openings import (
     mouth_opening,
     opening_sides,
     skin_faces,
+    without_pits,
 )
 from mimetic.testing import ict_expressions, load_ict, require_shared_data
 
@@ -47,6 +48,17 @@ def test_an_elliptic_hole_is_an_eye_opening_with_its_margins_at_top_and_bottom()
     upper, lower = margin_seeds(vertices, faces, opening, 0.1)
     assert len(upper) > 10 and len(lower) > 10
     assert (vertices[upper, 1] > -0.05).all() and (vertices[lower, 1] < 0.05).all()
+
+
+def test_a_ray_lost_between_two_triangles_is_filled_but_a_hole_is_not():
+    z = np.full((6, 7), 2.0)
+    z[2, 3] = np.nan  # one ray that missed: every neighbour was hit
+    z[0, 6] = -5.0  # one ray that saw far behind, on the map's corner
+    z[4, 1:3] = np.nan  # a hole two rays across
+    filled = without_pits(z)
+    assert filled[2, 3] == 2.0 and filled[0, 6] == 2.0
+    assert np.isnan(filled[4, 1:3]).all()
+    assert np.isnan(filled).sum() == 2 and (filled[~np.isnan(filled)] == 2.0).all()
 
 
 def test_a_plane_without_a_hole_has_no_eye_opening():
