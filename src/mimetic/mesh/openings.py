@@ -101,8 +101,9 @@ VALLEY_GAP_REL = 0.15
 """Breaks in the valley up to this × the mouth width long are bridged."""
 THROUGH_REL = 0.25
 """A seam point more than this × the mouth width behind the lips on both sides is seen through a gap
-between them (into the mouth's cavity), not where they touch: touching lips leave valleys up to 0.11
-× the width deep on ICT and its identities, a gap shows the cavity about 2 widths behind."""
+between them (into the mouth's cavity), not where they touch: touching lips left valleys up to 0.11
+× the width deep on ICT's neutral (calibration) and s106 σ 3, s108 σ 2 (check heads), and a gap
+showed the cavity 1.9-2.2 widths behind (ICT's middle, s106's corner)."""
 RIM_GAIN = 0.05
 """A grid point next to the skin's rim counts as a valley this × the mouth width deep (the seam's
 cost; a clear valley between parted lips is deeper)."""
