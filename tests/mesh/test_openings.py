@@ -79,14 +79,19 @@ def test_opening_sides_split_the_surface_by_the_nearer_margin():
     assert (side[np.abs(vertices[:, 0]) > 2.8] == 0).all()  # beyond reach of both
 
 
-def test_closed_lips_are_found_as_a_valley_between_two_bulges():
-    # two lips bulging toward the viewer, meeting along y = 0 between the corners x = ±2
+def closed_lips() -> tuple[np.ndarray, np.ndarray]:
+    """Two lips bulging toward the viewer, meeting along y = 0 between the corners x = ±2: a 6 × 3
+    sheet, 0.05 grid."""
     x, y = np.meshgrid(np.linspace(-3, 3, 121), np.linspace(-1.5, 1.5, 61))
     lip = np.clip(1 - (x / 2) ** 2, 0, None) * 0.3 * np.exp(-((np.abs(y) - 0.4) ** 2) / 0.05)
     vertices = np.column_stack([x.ravel(), y.ravel(), lip.ravel()])
     i = np.arange(60)[:, None] * 121 + np.arange(120)[None]
     quads = np.stack([i, i + 1, i + 122, i + 121], axis=-1).reshape(-1, 4)
-    faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    return vertices, np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+
+
+def test_closed_lips_are_found_as_a_valley_between_two_bulges():
+    vertices, faces = closed_lips()
     opening = mouth_opening(vertices, faces, np.array([[-2.0, 0, 0], [2.0, 0, 0]]))
     assert opening is not None
     assert np.abs(opening.upper[:, 1]).max() <= 0.1
@@ -96,12 +101,7 @@ def test_closed_lips_are_found_as_a_valley_between_two_bulges():
 def test_lips_parted_over_a_cavity_have_their_margins_on_the_lips_not_on_the_cavity():
     # the lips above, parted by a slit over the left half of the mouth that shows a wall 8 units
     # behind them (a mouth's cavity): the margins there are the slit's edges, on the lips
-    x, y = np.meshgrid(np.linspace(-3, 3, 121), np.linspace(-1.5, 1.5, 61))
-    lip = np.clip(1 - (x / 2) ** 2, 0, None) * 0.3 * np.exp(-((np.abs(y) - 0.4) ** 2) / 0.05)
-    vertices = np.column_stack([x.ravel(), y.ravel(), lip.ravel()])
-    i = np.arange(60)[:, None] * 121 + np.arange(120)[None]
-    quads = np.stack([i, i + 1, i + 122, i + 121], axis=-1).reshape(-1, 4)
-    grid = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    vertices, grid = closed_lips()
     centre = vertices[grid].mean(axis=1)
     lips = grid[~((np.abs(centre[:, 1]) < 0.1) & (centre[:, 0] < 0.0))]
     wall = vertices.copy()
