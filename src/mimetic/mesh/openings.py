@@ -314,9 +314,9 @@ def seen_eye(
 
 def without_pits(z: np.ndarray) -> np.ndarray:
     """The depth map ``z`` (ny, nx) (NaN: no hit) with its one-point pits filled: a ray along an edge
-    two triangles share can miss both by a rounding (one grid point of ICT's closed right lid in
-    10,000 showed the eyeball behind it), so a point deeper than all four of its neighbours takes the
-    deepest of theirs (on the map's border, of those it has). A hole two points across keeps its
+    two triangles share can miss both by a rounding (two of the 10,000 grid points over ICT's closed
+    right eye showed the eyeball behind it), so a point deeper than all four of its neighbours takes
+    the deepest of theirs (on the map's border, of those it has). A hole two points across keeps its
     depth."""
     deep = np.where(np.isnan(z), -np.inf, z)
     around = np.pad(deep, 1, constant_values=np.inf)
