@@ -73,6 +73,7 @@ __all__ = [
     "opening_sides",
     "seen_eye",
     "skin_faces",
+    "without_pits",
 ]
 
 EYE_SURFACE_SHARE = 0.9
