@@ -1,11 +1,12 @@
 """The weight repairs of rig transfer, on synthetic cases with known answers: steps of the jaw weight
-on connected skin, and soft mouth parts (gums joined to the tongue) by their nearer tooth row."""
+on connected skin, soft mouth parts (gums joined to the tongue) by their nearer tooth row, and which
+separate pieces turn with an eyeball."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from mimetic.fit.transfer import _smooth_jaw, _soft_mouth_jaw
+from mimetic.fit.transfer import _on_eyeball, _smooth_jaw, _soft_mouth_jaw
 
 
 def grid(size: int, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -88,3 +89,47 @@ def test_soft_mouth_vertices_follow_their_nearer_tooth_row():
     np.testing.assert_allclose(jaw[:2], 0.0, atol=1e-12)
     np.testing.assert_allclose(jaw[2:4], 1.0, atol=1e-12)
     assert abs(jaw[4] - 0.5) < 1e-12
+
+
+def _sphere_piece(centre, radius, *, theta_max=np.pi, scale=1.0, n=24):
+    """A sphere's vertices (k, 3) and faces (t, 3) from its front pole (+Z) out to polar angle
+    ``theta_max``, its radius × ``scale``: a globe (π), a cap, or a shell in front."""
+    t = np.linspace(0.0, theta_max, n)
+    p = np.linspace(0.0, 2 * np.pi, 2 * n, endpoint=False)
+    tt, pp = np.meshgrid(t, p, indexing="ij")
+    r = radius * scale
+    points = centre + r * np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], -1)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(2 * n), indexing="ij")
+    a, b = i * 2 * n + j, i * 2 * n + (j + 1) % (2 * n)
+    quads = np.stack([a, b, b + 2 * n, a + 2 * n], -1).reshape(-1, 4)
+    return points.reshape(-1, 3), np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+
+
+def _part(piece, keep):
+    """The faces of ``piece`` (vertices, faces) all of whose corners ``keep`` (k,) bool holds."""
+    vertices, faces = piece
+    return vertices, faces[keep[faces].all(axis=1)]
+
+
+def _on(piece, centre, radius):
+    vertices, faces = piece
+    return _on_eyeball(vertices, faces, np.unique(faces), centre, radius)
+
+
+def test_eyeball_pieces_turn_with_the_eye_and_films_over_it_do_not():
+    """A globe, a cornea and a pupil turn with the gaze; a tear line or an occlusion shell (a film over
+    the opening, ICT's eyes have three) and a blend patch at the inner corner ride the lids."""
+    centre, radius = np.array([3.0, 3.5, 8.0]), 1.2
+    globe = _sphere_piece(centre, radius)
+    # a cornea reaching 0.42 × the eyeball's radius off the axis, a pupil just inside the globe
+    cornea = _sphere_piece(centre + np.array([0, 0, 0.3]), 0.9, theta_max=0.6)
+    pupil = _sphere_piece(centre, radius * 0.99, theta_max=0.2)
+    for piece in (globe, cornea, pupil):
+        assert _on(piece, centre, radius)
+    # a shell over the whole opening (the gaze crosses it), a band along the lids, a corner's patch
+    shell = _sphere_piece(centre, radius, theta_max=1.2, scale=1.05)
+    polar = np.arccos((shell[0][:, 2] - centre[2]) / np.linalg.norm(shell[0] - centre, axis=1))
+    ring = _part(shell, polar >= 0.8)
+    corner = _part(shell, (polar >= 0.9) & (shell[0][:, 0] < centre[0] - 0.5))
+    for piece in (shell, ring, corner):
+        assert not _on(piece, centre, radius)

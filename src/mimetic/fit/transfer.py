@@ -53,14 +53,12 @@ its centre: a cornea's bulge reaches 1.22 on ICT (its sclera's sphere 1.42 cm); 
 past it (one of ICT's right upper lashes, 0.6 of whose vertices lie nearest the reference eyeball,
 1.84) and rides its lid instead (``find_accessories``) rather than turning with the gaze and
 staying open over a closed lid."""
+CAP_REL = 0.75
+"""A cap in front of an eyeball's centre turns with it within this × its radius of the gaze axis: a
+cornea's limbus lies at about 0.5 (11.5 mm across a 24 mm globe); ICT's eye films (tear line,
+occlusion shell, inner corner's blend) reach 0.86-1.23 on its identity heads and ride the lids."""
 MAX_TOOTH_SPAN = 2.0  # a mouth part taller than this × the distance between the tooth rows is soft
-RIGID_PARTS = {
-    "eye_L": "eye_L",
-    "eye_R": "eye_R",
-    "teeth_upper": "head",
-    "teeth_lower": "jaw",
-    "tongue": "jaw",
-}
+RIGID_PARTS = dict(eye_L="eye_L", eye_R="eye_R", teeth_upper="head", teeth_lower="jaw", tongue="jaw")
 DEFORMABLE_PARTS = ("skin", "mouth", "ear_L", "ear_R")
 MOUTH_BOX_REL = ((-1.0, 1.0), (-0.1, 0.8), (-2.5, 0.5))
 """Where the user's mouth parts lie: (low, high) in x, y and z about the mouth's centre (the corners'
@@ -135,6 +133,24 @@ def _two_means(centres: np.ndarray, mesh_ref: Mesh) -> tuple[float, float]:
     return float(values[values > split].mean()), float(values[values <= split].mean())
 
 
+def _on_eyeball(
+    vertices: np.ndarray, faces: np.ndarray, ids: np.ndarray, centre: np.ndarray, radius: float
+) -> bool:
+    """Whether the separate piece of ``vertices`` (n, 3) (reference frame) ``ids`` (k,) turns with the
+    eyeball at ``centre``: it reaches behind the centre (a sclera), or it is a cap the gaze (+Z)
+    crosses, within ``CAP_REL`` × ``radius`` of it (a cornea, iris, pupil). A film over the eye spans
+    the opening in front of the centre and rides the lids."""
+    points = vertices[ids]
+    if np.any(points[:, 2] < centre[2]):
+        return True
+    if np.linalg.norm(points[:, :2] - centre[:2], axis=1).max() > CAP_REL * radius:
+        return False
+    triangles = vertices[faces[np.isin(faces[:, 0], ids)]]  # (t, 3, 3)
+    a, b, c = (triangles[:, k, :2] - centre[:2] for k in range(3))
+    d1, d2, d3 = (p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0] for p, q in ((a, b), (b, c), (c, a)))
+    return bool(np.any(((d1 >= 0) & (d2 >= 0) & (d3 >= 0)) | ((d1 <= 0) & (d2 <= 0) & (d3 <= 0))))
+
+
 def _separate_parts(
     reference: Rig, user: Mesh, in_model: np.ndarray, hit: ClosestPoints
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -142,8 +158,9 @@ def _separate_parts(
     name, and (n_user,) bool marking the soft ones inside the mouth.
 
     A connected component of the user's mesh is an eyeball when ``RIGID_SHARE`` of its vertices land
-    on a reference eyeball and it lies within ``EYE_REACH`` of the sphere through that eye's largest
-    such piece. It is in the mouth when that share lies in the box ``MOUTH_BOX_REL`` sets
+    on a reference eyeball, it lies within ``EYE_REACH`` of the sphere through that eye's largest
+    such piece, and it is a globe or a cap on the gaze (``_on_eyeball``), not a film over the eye. It
+    is in the mouth when that share lies in the box ``MOUTH_BOX_REL`` sets
     about the mouth's landmarks (on the user's skin, not the fitted reference's mouth parts, which stand
     off a σ 3 identity's teeth by 1.5 cm). The mouth parts' centroid heights fall into two rows
     (the user's upper and lower teeth; 1-D 2-means): a part no taller than ``MAX_TOOTH_SPAN`` times
@@ -195,6 +212,7 @@ def _separate_parts(
             ids
             for ids in pieces
             if np.linalg.norm(in_model[ids] - centre, axis=1).max() <= EYE_REACH * radius
+            and _on_eyeball(in_model, user.faces, ids, centre, radius)
         ]
         if inside:
             rigid[eye] = inside
