@@ -207,7 +207,7 @@ def test_teeth_that_stand_off_the_fitted_references_move_as_one_piece(ict):
     fitted reference's: half of each upper tooth lay outside the box around the reference's mouth
     parts, so 8 of its 32 teeth were taken for skin and split between the jaws (neighbouring
     vertices at jaw 0.94 and 0.03), and the jaw drop drew them into sheets across the mouth. The box
-    is now set by the mouth's own landmarks (``transfer.MOUTH_BOX_REL``)."""
+    is now set by the mouth's own landmarks (``parts.MOUTH_BOX_REL``)."""
     from mimetic.mesh.geometry import connected_components
 
     rig = identity_rig(103, 3.0)

@@ -1,12 +1,13 @@
-"""The weight repairs of rig transfer, on synthetic cases with known answers: steps of the jaw weight
-on connected skin, soft mouth parts (gums joined to the tongue) by their nearer tooth row, and which
-separate pieces turn with an eyeball."""
+"""The weight repairs of rig transfer and its separate parts, on synthetic cases with known answers:
+steps of the jaw weight on connected skin, soft mouth parts (gums joined to the tongue) by their
+nearer tooth row, and which separate pieces turn with an eyeball."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from mimetic.fit.transfer import _on_eyeball, _smooth_jaw, _soft_mouth_jaw
+from mimetic.fit.parts import _on_eyeball, soft_mouth_jaw
+from mimetic.fit.transfer import _smooth_jaw
 
 
 def grid(size: int, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -85,7 +86,7 @@ def test_soft_mouth_vertices_follow_their_nearer_tooth_row():
             [0.0, 0.0, 0.0],  # halfway: shared
         ]
     )
-    jaw = _soft_mouth_jaw(points, upper, lower)
+    jaw = soft_mouth_jaw(points, upper, lower)
     np.testing.assert_allclose(jaw[:2], 0.0, atol=1e-12)
     np.testing.assert_allclose(jaw[2:4], 1.0, atol=1e-12)
     assert abs(jaw[4] - 0.5) < 1e-12
@@ -111,25 +112,31 @@ def _part(piece, keep):
     return vertices, faces[keep[faces].all(axis=1)]
 
 
-def _on(piece, centre, radius):
+def _on(piece, radius):
     vertices, faces = piece
-    return _on_eyeball(vertices, faces, np.unique(faces), centre, radius)
+    return _on_eyeball(vertices, faces, np.unique(faces), radius)
 
 
 def test_eyeball_pieces_turn_with_the_eye_and_films_over_it_do_not():
-    """A globe, a cornea and a pupil turn with the gaze; a tear line or an occlusion shell (a film over
-    the opening, ICT's eyes have three) and a blend patch at the inner corner ride the lids."""
+    """A globe, a half globe, a cornea and an iris turn with the gaze, whichever way the eye looks; a
+    tear line, an occlusion shell or a blend patch in the inner corner (films over the opening, which
+    end along the lids; ICT's eyes have all three) ride the lids."""
     centre, radius = np.array([3.0, 3.5, 8.0]), 1.2
     globe = _sphere_piece(centre, radius)
-    # a cornea reaching 0.42 × the eyeball's radius off the axis, a pupil just inside the globe
+    half = _sphere_piece(centre, radius, theta_max=np.pi / 2)
     cornea = _sphere_piece(centre + np.array([0, 0, 0.3]), 0.9, theta_max=0.6)
-    pupil = _sphere_piece(centre, radius * 0.99, theta_max=0.2)
-    for piece in (globe, cornea, pupil):
-        assert _on(piece, centre, radius)
-    # a shell over the whole opening (the gaze crosses it), a band along the lids, a corner's patch
+    iris = _sphere_piece(centre, radius * 0.9, theta_max=0.5, scale=1.0)
+    turn = np.array([[np.cos(0.4), 0, np.sin(0.4)], [0, 1, 0], [-np.sin(0.4), 0, np.cos(0.4)]])  # 23° aside
+    aside = ((cornea[0] - centre) @ turn.T + centre, cornea[1])
+    for piece in (globe, half, cornea, iris, aside):
+        assert _on(piece, radius)
+    # a shell over the opening whose edge follows the lids (an eye-shaped rim, not a circle), a band
+    # along the lower lid and a patch in the inner corner
     shell = _sphere_piece(centre, radius, theta_max=1.2, scale=1.05)
-    polar = np.arccos((shell[0][:, 2] - centre[2]) / np.linalg.norm(shell[0] - centre, axis=1))
-    ring = _part(shell, polar >= 0.8)
-    corner = _part(shell, (polar >= 0.9) & (shell[0][:, 0] < centre[0] - 0.5))
-    for piece in (shell, ring, corner):
-        assert not _on(piece, centre, radius)
+    d = shell[0] - centre
+    inside_lids = np.abs(d[:, 1]) <= 0.55 * radius * np.cos(0.9 * d[:, 0] / radius)
+    opening = _part(shell, inside_lids)
+    lower = _part(shell, (d[:, 1] < 0) & (d[:, 1] > -0.6 * radius) & (np.abs(d[:, 0]) < 0.9 * radius))
+    corner = _part(shell, (d[:, 0] < -0.5 * radius) & (np.abs(d[:, 1]) < 0.3 * radius))
+    for piece in (opening, lower, corner):
+        assert not _on(piece, radius)

@@ -7,9 +7,9 @@ reference's per-vertex data there: skin weights (then the 4 largest, renormalise
 wire-set membership (kept where the interpolated indicator is ≥ 0.5, and each lip vertex in one
 lip only). Surface points (landmarks, muscle ends, wire control points) move the other way: each
 becomes the closest point of the user's deformable surface. Separate user parts that land on the
-reference's eyeballs or teeth become rigid: an eyeball follows its eye bone (placed at the centre
-of a sphere fitted to the user's eyeball), lower teeth and tongue the jaw, upper teeth the head;
-soft mouth parts (gums joined to the tongue) follow their nearer tooth row (``_soft_mouth_jaw``),
+reference's eyeballs or teeth become rigid (``mimetic.fit.parts``): an eyeball follows its eye bone
+(placed at the centre of a sphere fitted to the user's eyeball), lower teeth and tongue the jaw,
+upper teeth the head; soft mouth parts (gums joined to the tongue) follow their nearer tooth row,
 and the jaw weight is diffused over the user's skin so its steps become slopes (``_smooth_jaw``). The
 user's vertices, faces and their order are never changed; the rig lives in the user's frame turned
 by the nearest axis-aligned rotation to +Y up, +Z forward (the identity for meshes already in that
@@ -23,13 +23,13 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
+from mimetic.fit.parts import RIGID_PARTS, separate_parts, soft_mouth_jaw
 from mimetic.fit.sides import sides_of
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
-from mimetic.mesh.geometry import connected_components, smooth_field, vertex_areas, vertex_normals
+from mimetic.mesh.geometry import smooth_field, vertex_normals
 from mimetic.mesh.model import Mesh, SurfacePoint, surface_positions
 from mimetic.mesh.openings import Opening
 from mimetic.rig.anatomy import closing_weights, find_accessories
@@ -46,26 +46,7 @@ from mimetic.rig.model import Bone, Rig, Wire
 MAX_INFLUENCES = 4
 MIN_WEIGHT = 1e-6  # skin weights below this are 0 (no influence)
 MEMBERSHIP = 0.5  # interpolated indicator from which a vertex belongs to a region or wire set
-RIGID_SHARE = 0.6  # share of a separate part's vertices landing on one rigid reference part
-EYE_REACH = 1.5
-"""An eye's piece lies within this × the radius of the sphere through the eye's largest piece from
-its centre: a cornea's bulge reaches 1.22 on ICT (its sclera's sphere 1.42 cm); a lash strip reaches
-past it (one of ICT's right upper lashes, 0.6 of whose vertices lie nearest the reference eyeball,
-1.84) and rides its lid instead (``find_accessories``) rather than turning with the gaze and
-staying open over a closed lid."""
-CAP_REL = 0.75
-"""A cap in front of an eyeball's centre turns with it within this × its radius of the gaze axis: a
-cornea's limbus lies at about 0.5 (11.5 mm across a 24 mm globe); ICT's eye films (tear line,
-occlusion shell, inner corner's blend) reach 0.86-1.23 on its identity heads and ride the lids."""
-MAX_TOOTH_SPAN = 2.0  # a mouth part taller than this × the distance between the tooth rows is soft
-RIGID_PARTS = dict(eye_L="eye_L", eye_R="eye_R", teeth_upper="head", teeth_lower="jaw", tongue="jaw")
 DEFORMABLE_PARTS = ("skin", "mouth", "ear_L", "ear_R")
-MOUTH_BOX_REL = ((-1.0, 1.0), (-0.1, 0.8), (-2.5, 0.5))
-"""Where the user's mouth parts lie: (low, high) in x, y and z about the mouth's centre (the corners'
-midpoint), × the mouth width, but y's low end about the menton. Read off ICT's neutral
-and calibration heads s1 σ1 and s4 σ3 (teeth and gums within ±0.85 in x, 0.69 above the centre, 0.35
-in front of it and 2.1 behind), with room to spare; checked on s103 and s148 σ3, whose teeth stand
-1.5 cm higher than the fitted reference's and were half outside a box around its mouth parts."""
 CORNER_REACH = (
     0.5  # the mouth cavity within this × half the mouth width of a corner is smoothed with the lips
 )
@@ -115,140 +96,6 @@ def _correspond(mesh_ref: Mesh, faces: np.ndarray, points: np.ndarray, normals: 
     )
     hit.faces[:] = faces[hit.faces]
     return hit
-
-
-def _two_means(centres: np.ndarray, mesh_ref: Mesh) -> tuple[float, float]:
-    """The upper and lower rows' mean heights: 1-D 2-means of the mouth parts' centroid heights
-    (started at their widest gap), or the reference's teeth when there are fewer than 2 parts."""
-    values = np.sort(centres)
-    if len(values) < 2:
-        rows = [
-            mesh_ref.vertices[mesh_ref.part_vertices(p), 1].mean() for p in ("teeth_upper", "teeth_lower")
-        ]
-        return float(rows[0]), float(rows[1])
-    k = int(np.argmax(np.diff(values)))
-    split = 0.5 * (values[k] + values[k + 1])
-    for _ in range(10):
-        split = 0.5 * (values[values > split].mean() + values[values <= split].mean())
-    return float(values[values > split].mean()), float(values[values <= split].mean())
-
-
-def _on_eyeball(
-    vertices: np.ndarray, faces: np.ndarray, ids: np.ndarray, centre: np.ndarray, radius: float
-) -> bool:
-    """Whether the separate piece of ``vertices`` (n, 3) (reference frame) ``ids`` (k,) turns with the
-    eyeball at ``centre``: it reaches behind the centre (a sclera), or it is a cap the gaze (+Z)
-    crosses, within ``CAP_REL`` × ``radius`` of it (a cornea, iris, pupil). A film over the eye spans
-    the opening in front of the centre and rides the lids."""
-    points = vertices[ids]
-    if np.any(points[:, 2] < centre[2]):
-        return True
-    if np.linalg.norm(points[:, :2] - centre[:2], axis=1).max() > CAP_REL * radius:
-        return False
-    triangles = vertices[faces[np.isin(faces[:, 0], ids)]]  # (t, 3, 3)
-    a, b, c = (triangles[:, k, :2] - centre[:2] for k in range(3))
-    d1, d2, d3 = (p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0] for p, q in ((a, b), (b, c), (c, a)))
-    return bool(np.any(((d1 >= 0) & (d2 >= 0) & (d3 >= 0)) | ((d1 <= 0) & (d2 <= 0) & (d3 <= 0))))
-
-
-def _separate_parts(
-    reference: Rig, user: Mesh, in_model: np.ndarray, hit: ClosestPoints
-) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The user's separate parts: the vertices (sorted) of those that move rigidly, by reference part
-    name, and (n_user,) bool marking the soft ones inside the mouth.
-
-    A connected component of the user's mesh is an eyeball when ``RIGID_SHARE`` of its vertices land
-    on a reference eyeball, it lies within ``EYE_REACH`` of the sphere through that eye's largest
-    such piece, and it is a globe or a cap on the gaze (``_on_eyeball``), not a film over the eye. It
-    is in the mouth when that share lies in the box ``MOUTH_BOX_REL`` sets
-    about the mouth's landmarks (on the user's skin, not the fitted reference's mouth parts, which stand
-    off a σ 3 identity's teeth by 1.5 cm). The mouth parts' centroid heights fall into two rows
-    (the user's upper and lower teeth; 1-D 2-means): a part no taller than ``MAX_TOOTH_SPAN`` times
-    the distance between the rows follows the head when its centroid is in the upper row's half and
-    the jaw otherwise; a taller one (gums joined to the tongue, a mouth cavity) is soft (see
-    ``_soft_mouth_jaw``).
-
-    A centroid is the part's area centroid (``vertex_areas``), not the mean of its vertices: the
-    rows are the surfaces' and do not move with how the teeth are sampled. A decimated copy keeps a
-    tooth's vertices unevenly, which moved the vertex means of ICT's teeth (each decimated from
-    5-13k vertices to 300 in a 1.68M head's working copy) 0.5 cm further apart: the rows
-    stood 2.09 cm apart instead of 1.60, and the 4.1 cm tall gums-and-tongue piece turned with the
-    jaw as lower teeth.
-    """
-    mesh_ref = reference.mesh
-    ref_part = np.full(mesh_ref.n_faces, "", dtype=object)
-    for name, faces in mesh_ref.parts.items():
-        ref_part[faces] = name
-    vertex_part = ref_part[hit.faces].astype(str)
-    y = in_model[:, 1]  # the user's vertices in the reference frame
-    corners, menton = np.split(
-        reference.landmark_positions(["mouth_corner_L", "mouth_corner_R", "menton"]), [2]
-    )
-    width = np.linalg.norm(corners[0] - corners[1])
-    centre = corners.mean(axis=0)
-    low, high = (np.array(MOUTH_BOX_REL) * width).T
-    box = (centre + low, centre + high)
-    box[0][1] = menton[0, 1] + low[1]  # the lower teeth reach down to the chin
-    _, label = connected_components(user.faces, user.n_vertices)
-    order = np.argsort(label, kind="stable")
-    starts = np.flatnonzero(np.diff(label[order], prepend=-1))
-    rigid: dict[str, list[np.ndarray]] = {}
-    eyes: dict[str, list[np.ndarray]] = {}
-    mouth: list[tuple[np.ndarray, dict[str, float]]] = []
-    soft = np.zeros(user.n_vertices, dtype=bool)
-    for ids in np.split(order, starts[1:]):
-        if len(ids) > user.n_vertices // 2:  # the skin
-            continue
-        names, counts = np.unique(vertex_part[ids], return_counts=True)
-        share = dict(zip(names.tolist(), (counts / len(ids)).tolist(), strict=True))
-        eye = max(("eye_L", "eye_R"), key=lambda p: share.get(p, 0.0))
-        if share.get(eye, 0.0) >= RIGID_SHARE:
-            eyes.setdefault(eye, []).append(ids)
-        elif np.mean(np.all((in_model[ids] >= box[0]) & (in_model[ids] <= box[1]), axis=1)) >= RIGID_SHARE:
-            mouth.append((ids, share))
-    for eye, pieces in eyes.items():
-        centre, radius = eye_sphere(in_model[max(pieces, key=len)])
-        inside = [
-            ids
-            for ids in pieces
-            if np.linalg.norm(in_model[ids] - centre, axis=1).max() <= EYE_REACH * radius
-            and _on_eyeball(in_model, user.faces, ids, centre, radius)
-        ]
-        if inside:
-            rigid[eye] = inside
-    if mouth:
-        area = vertex_areas(in_model, user.faces)  # (n,) area centroids, whatever the sampling
-        centres = np.array(
-            [np.average(y[ids], weights=area[ids] if area[ids].any() else None) for ids, _ in mouth]
-        )
-        upper_mean, lower_mean = _two_means(centres, mesh_ref)
-        occlusal = 0.5 * (upper_mean + lower_mean)
-        for (ids, share), centre in zip(mouth, centres, strict=True):
-            if np.ptp(y[ids]) > MAX_TOOTH_SPAN * (upper_mean - lower_mean):
-                soft[ids] = True  # spans both rows: gums, tongue or cavity
-                continue
-            if centre > occlusal:
-                rigid.setdefault("teeth_upper", []).append(ids)
-            else:
-                rigid.setdefault("tongue" if share.get("tongue", 0.0) > 0.5 else "teeth_lower", []).append(
-                    ids
-                )
-    return {part: np.sort(np.concatenate(ids)) for part, ids in rigid.items()}, soft
-
-
-def _soft_mouth_jaw(points: np.ndarray, upper_teeth: np.ndarray, lower_teeth: np.ndarray) -> np.ndarray:
-    """Jaw weight (k,) of soft mouth vertices ``points`` (k, 3) from their distances to the upper and
-    lower teeth's vertices (reference frame): ``smoothstep(0.3, 0.7, d_upper / (d_upper + d_lower))``.
-
-    Gums joined to the tongue in one piece (as in ICT-FaceKit) would otherwise take weights from
-    whichever reference surface lies nearest, blended ones that drag the upper gums down into a
-    grille when the jaw opens. The nearer row decides instead: the gums and their papillae between
-    the teeth follow their own row, the tongue inside the lower arch rides the jaw, and only the
-    back, where the two gums meet, stretches.
-    """
-    d_upper, _ = cKDTree(upper_teeth).query(points)
-    d_lower, _ = cKDTree(lower_teeth).query(points)
-    return smoothstep(0.3, 0.7, d_upper / np.maximum(d_upper + d_lower, 1e-12))
 
 
 def _cavity_jaw(points: np.ndarray, mouth: Opening) -> np.ndarray:
@@ -437,7 +284,7 @@ def transfer_rig(
     in_model.setflags(write=False)  # so the user's edges, pieces and skin are found once (``mesh.memo``)
     normals = vertex_normals(in_model, user.faces)
     hit = _correspond(mesh_ref, np.arange(mesh_ref.n_faces), in_model, normals)
-    rigid, soft_mouth = _separate_parts(reference, user, in_model, hit)
+    rigid, soft_mouth = separate_parts(reference, user, in_model, hit)
     # the skin takes its data from the reference's deformable surface only (a lid margin near the
     # reference eyeball must blink with the lid, not turn with the gaze)
     in_rigid = np.zeros(user.n_vertices, dtype=bool)
@@ -461,7 +308,7 @@ def transfer_rig(
         weights[ids] = 0.0
         weights[ids, reference.bone_index(RIGID_PARTS[part])] = 1.0
     if soft_mouth.any() and "teeth_upper" in rigid and "teeth_lower" in rigid:
-        jaw = _soft_mouth_jaw(
+        jaw = soft_mouth_jaw(
             in_model[soft_mouth], in_model[rigid["teeth_upper"]], in_model[rigid["teeth_lower"]]
         )
         weights[soft_mouth] = 0.0
