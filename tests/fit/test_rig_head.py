@@ -8,6 +8,8 @@ faces (ICT-FaceKit, MediaPipe's canonical mesh) come from ../shared/data.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import trimesh
@@ -127,6 +129,26 @@ def test_separate_parts_attach_to_their_bones(target: Head, rigged: RigResult) -
     eye = rig.bone("eye_L")
     np.testing.assert_allclose(eye.head, target.eye_centres[0], atol=0.02)  # sphere fit to the eyeball
     assert eye.length == pytest.approx(target.eye_radius, rel=0.05)
+
+
+def test_half_globe_eyes_turn_with_the_gaze(target: Head) -> None:
+    """Eyeballs modelled as their front halves only (as some game heads have them) end in a circle at
+    the equator: they are the eye, whose bone turns them, not films over it that ride the lids."""
+    m = target.mesh
+    keep = np.ones(m.n_faces, dtype=bool)
+    for centre, side in zip(target.eye_centres, "LR", strict=True):
+        eye = m.parts[f"eye_{side}"]
+        keep[eye[m.vertices[m.faces[eye], 2].max(axis=1) < centre[2]]] = False
+    used = np.unique(m.faces[keep])
+    index = np.full(m.n_vertices, -1)
+    index[used] = np.arange(len(used))
+    with warnings.catch_warnings():  # the eyes' back halves gone, the mouth's seam is a larger share: welded
+        warnings.simplefilter("ignore", MimeticWarning)
+        rig = rig_head(Mesh(m.vertices[used], index[m.faces[keep]], units="cm"), _landmarks(target)).rig
+    for side in "LR":
+        half = np.unique(index[m.faces[m.parts[f"eye_{side}"]][keep[m.parts[f"eye_{side}"]]]])
+        weights = rig.skin_weights[half, rig.bone_index(f"eye_{side}")].toarray().ravel()
+        np.testing.assert_allclose(weights, 1.0, err_msg=side)
 
 
 def test_transferred_rig_poses_like_the_targets_own(target: Head, rigged: RigResult) -> None:
