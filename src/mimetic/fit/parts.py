@@ -67,12 +67,13 @@ def _on_eyeball(vertices: np.ndarray, faces: np.ndarray, ids: np.ndarray, radius
         return True
     corners, pairs = np.unique(rim, return_inverse=True)
     pairs = pairs.reshape(-1, 2)
-    _, loop = connected_components(np.column_stack([pairs, pairs[:, 1]]), len(corners))
-    for points in (
-        vertices[corners[loop == k]] - vertices[corners[loop == k]].mean(axis=0) for k in np.unique(loop)
-    ):
-        flat = np.linalg.svd(points, compute_uv=False)[-1] / np.sqrt(len(points))
-        if max(flat, np.linalg.norm(points, axis=1).std()) > RIM_ROUND_REL * radius:
+    _, loop = connected_components(np.column_stack([pairs, pairs[:, 1]]), len(corners))  # edges as triangles
+    for k in np.unique(loop):
+        points = vertices[corners[loop == k]]
+        points = points - points.mean(axis=0)
+        off_plane = np.linalg.svd(points, compute_uv=False)[-1] / np.sqrt(len(points))  # RMS
+        off_round = np.linalg.norm(points, axis=1).std()
+        if max(off_plane, off_round) > RIM_ROUND_REL * radius:
             return False
     return True
 
