@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints
-from mimetic.mesh.geometry import boundary_edges, connected_components, vertex_areas
+from mimetic.mesh.geometry import boundary_paths, connected_components, vertex_areas
 from mimetic.mesh.model import Mesh
 from mimetic.rig.anatomy.lids import eye_sphere
 from mimetic.rig.model import Rig
@@ -62,15 +62,9 @@ def _on_eyeball(vertices: np.ndarray, faces: np.ndarray, ids: np.ndarray, radius
     """Whether the piece ``ids`` (k,) of ``vertices`` (n, 3), ``faces`` (m, 3) turns with an eyeball of
     ``radius``: it is closed, or each rim is a circle (``RIM_ROUND_REL``: a sclera's hole, a limbus, a
     pupil, a half globe's equator); a film ends along the lids and rides them."""
-    rim = boundary_edges(faces[np.isin(faces[:, 0], ids)])
-    if not len(rim):
-        return True
-    corners, pairs = np.unique(rim, return_inverse=True)
-    pairs = pairs.reshape(-1, 2)
-    _, loop = connected_components(np.column_stack([pairs, pairs[:, 1]]), len(corners))  # edges as triangles
-    for k in np.unique(loop):
-        points = vertices[corners[loop == k]]
-        points = points - points.mean(axis=0)
+    rims = boundary_paths(faces[np.isin(faces[:, 0], ids)])
+    for rim in (*rims.loops, *rims.chains):
+        points = vertices[rim] - vertices[rim].mean(axis=0)
         off_plane = np.linalg.svd(points, compute_uv=False)[-1] / np.sqrt(len(points))  # RMS
         off_round = np.linalg.norm(points, axis=1).std()
         if max(off_plane, off_round) > RIM_ROUND_REL * radius:
