@@ -237,6 +237,26 @@ def test_build_rig_jaw_carries_the_lower_teeth_tongue_and_lower_lip_only(seed):
     assert w[head.landmarks["pogonion"], jaw] >= 0.99  # the chin's border is smoothed, its core all but 1
 
 
+def test_build_rig_jaw_translations_reach_a_mandibles_range():
+    """At their maxima the lower teeth shift 0.8-1.2 cm to either side (an adult's lateral excursion,
+    8-12 mm) and 0.7-1.2 cm forward (protrusion, 7-11 mm), on a head of ordinary height."""
+    from mimetic.engines import make_engine
+    from mimetic.rig.activations import pose
+
+    rig, head = small_rig(), small_head()
+    assert 20.0 < rig.scale < 24.0  # cm: the built-in head is an adult's
+    engine = make_engine(rig, "wire")
+    teeth = head.mesh.part_vertices("teeth_lower")
+    rest = engine.deform(pose(rig))[teeth]
+    for name, axis, (low, high) in (("jaw_slide", 0, (0.8, 1.2)), ("jaw_protrude", 2, (0.7, 1.2))):
+        channel = rig.channel(name)
+        moved = engine.deform(pose(rig, {name: channel.maximum}))[teeth] - rest  # (k, 3) cm
+        assert np.allclose(moved, moved[0], atol=1e-9)  # the jaw translates them rigidly
+        assert low <= moved[0, axis] <= high, (name, moved[0])
+        if name == "jaw_slide":
+            assert channel.minimum == -channel.maximum  # either side alike
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 def test_build_rig_eyeballs_follow_their_eye_bones(seed):
     rig, head = small_rig(seed), small_head(seed)

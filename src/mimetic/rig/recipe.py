@@ -28,6 +28,13 @@ from mimetic.rig.model import Channel, Muscle, Rig, Wire
 
 CHEEK_SUCK = -0.5
 """The lower end of ``cheek_puff``: the puff's field reversed draws the cheeks in (FACS AU35)."""
+JAW_SLIDE_REL = 0.045
+"""``jaw_slide``'s reach to either side, × the head height (1 cm on a 22 cm head: an adult's lateral
+excursion is 8-12 mm). 0.03 before 2026-12-07: ICT's captured jawLeft/jawRight were fitted at the
+bound (wire, automatic landmarks: 28.3 → 26.9 % on ICT, 28.3 → 26.8 on check s101 σ 1)."""
+JAW_PROTRUDE_REL = 0.05
+"""``jaw_protrude``'s forward reach, × the head height (1.1 cm; protrusion is 7-11 mm). 0.04 before
+2026-12-07, the bound of ICT's jawForward fit (36.8 → 35.9 % on ICT, 37.0 → 36.0 on check s101 σ 1)."""
 
 # (name, kind, origin, insertion, width_rel, falloff_start_rel, falloff_end_rel, angle_deg, region)
 # origin / insertion: a landmark name or a canonical chart point (X, Y) on the left side;
@@ -323,7 +330,8 @@ def _wires(head: Head, places: _Places, muscles: dict[str, Muscle], scale: float
 def _channels(muscles: list[Muscle]) -> list[Channel]:
     """The pivot's channels: muscles in [0, 1], the tissue actions' own channels (``cheek_puff`` down
     to CHEEK_SUCK draws the cheeks in), then jaw, eyelids (``eyelid_upper`` at its maximum,
-    EYELID_CLOSED_RAD, closes the eye on every head), gaze and head, with their units."""
+    EYELID_CLOSED_RAD, closes the eye on every head), gaze and head, with their units.
+    The jaw's translations reach a mandible's own range (JAW_SLIDE_REL, JAW_PROTRUDE_REL)."""
     channels = [Channel(m.name, 0.0, 1.0, group="muscles") for m in muscles]
     channels += [
         Channel(name, CHEEK_SUCK if name.startswith("cheek_puff") else 0.0, 1.0, group=group)
@@ -331,8 +339,8 @@ def _channels(muscles: list[Muscle]) -> list[Channel]:
     ]
     channels += [
         Channel("jaw_open", -0.05, 0.45, unit="rad", group="jaw"),
-        Channel("jaw_slide", -0.03, 0.03, unit="rel", group="jaw"),
-        Channel("jaw_protrude", -0.02, 0.04, unit="rel", group="jaw"),
+        Channel("jaw_slide", -JAW_SLIDE_REL, JAW_SLIDE_REL, unit="rel", group="jaw"),
+        Channel("jaw_protrude", -0.02, JAW_PROTRUDE_REL, unit="rel", group="jaw"),
     ]
     for side in "LR":
         channels += [
