@@ -59,7 +59,11 @@ UPPER_LIP_REACH = 0.85
 lip's middle then follows the jaw less than ICT's own jawOpen does, on ICT's identity heads too)."""
 LOWER_LIP_REACH = 1.0
 """The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width: all the way to the
-mouth's middle, so no edge across the lower lip opens wide near a corner."""
+mouth's middle, so no edge across the lower lip opens wide near a corner. Its distance from a corner
+is taken across the face (x and y), so the lip's inner surface, running back toward the corners'
+depth, keeps the weight of the lip in front of it: measured in space the weight fell going back into
+the mouth, and a jaw drop folded that surface over on ICT's σ 2-3 identities (the sweep's lip flips
+308 → 262, s111 σ 2 8 → 1, s121 σ 3 21 → 13; ICT's jaw weights against its jawOpen's 3.81 → 3.83 %)."""
 JAW_SMOOTHING_REL = 0.03
 """The jaw weight of the chin and the cheeks is smoothed over this × the head height (6 mm) last, so
 the chin's border with the cheeks is not a crease."""
@@ -146,7 +150,10 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
         fixed[ids] = True
     for ids in (regions["chin"], core, lower):
         fixed[ids], value[ids] = True, 1.0
-    value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(CORNER_CORE, LOWER_LIP_REACH, reach[lower]))
+    across = (
+        np.linalg.norm(v[lower, None, :2] - corners[None, :, :2], axis=2).min(axis=1) / half_width
+    )  # (k,)
+    value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(CORNER_CORE, LOWER_LIP_REACH, across))
     value[upper] = CORNER_JAW * (1.0 - smoothstep(CORNER_CORE, UPPER_LIP_REACH, reach[upper]))
     free = np.zeros(n, dtype=bool)
     free[skin] = ~fixed[skin]
