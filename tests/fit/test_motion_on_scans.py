@@ -202,21 +202,24 @@ def test_a_lower_lip_whose_hidden_top_looks_like_the_upper_margin_keeps_its_side
 
 
 @pytest.mark.filterwarnings("ignore")
-def test_the_lower_lips_inner_surface_rides_the_jaw_as_its_front_does(ict):
-    """An identity at σ 2 (s111, a check head of the sweep): the lower lip's jaw weight, ramped by the
-    distance from the nearer corner measured in space, fell along the lip's inner surface as it ran
-    back toward the corners' depth (on s121 σ 3 from 0.85 to 0.6 over 6 mm), and the library's jaw
-    drop folded 8 of its triangles over. Measured across the face
-    (``bones.LOWER_LIP_REACH``) the weight holds along the surface, as the mandible carries it."""
+@pytest.mark.parametrize(("seed", "before"), [(111, 8), (138, 4)])
+def test_the_lips_inner_surfaces_ride_the_jaw_as_their_fronts_do(ict, seed, before):
+    """Identities at σ 2 (s111, s138: check heads of the sweep): each lip's jaw weight, ramped by the
+    distance from the nearer mouth corner measured in space, changed along the lip's inner surface
+    as it ran back toward the corners' depth (the lower lip's fell, on s121 σ 3 from 0.85 to 0.6
+    over 6 mm), and the library's jaw drop folded ``before`` of their triangles over. The lower
+    lip's distance is now taken across the face and the upper lip's counts depth only in front of
+    the corners (``bones.LOWER_LIP_REACH``, ``UPPER_LIP_REACH``): the weight holds along the inner
+    surfaces, as the jaw and the skull carry them."""
     from mimetic.animate.expressions import expression_pose
     from mimetic.quality import lip_faces, triangle_flips
 
-    rig = identity_rig(111, 2.0)
+    rig = identity_rig(seed, 2.0)
     engine = make_engine(rig, "wire")
     rest = engine.deform(np.array([c.default for c in rig.channels]))
     dropped = engine.deform(expression_pose(rig, "jaw_drop"))
     lips = lip_faces(rig, ict_face_faces(rig.mesh, ict[1]))
-    assert int(triangle_flips(rest, dropped, lips).sum()) <= 2  # 1 measured, 8 before
+    assert int(triangle_flips(rest, dropped, lips).sum()) <= 1  # 0 and 1 measured
 
 
 @pytest.mark.filterwarnings("ignore")

@@ -56,7 +56,12 @@ CORNER_CORE = 0.1
 corner's slivers, where the lips' rows converge, move as one instead of shearing flat."""
 UPPER_LIP_REACH = 0.85
 """The upper lip's jaw weight falls from CORNER_JAW to 0 over this × half the mouth width (the upper
-lip's middle then follows the jaw less than ICT's own jawOpen does, on ICT's identity heads too)."""
+lip's middle then follows the jaw less than ICT's own jawOpen does, on ICT's identity heads too). Its
+distance from a corner counts depth only in front of the corners: the lip's inner surface behind
+them keeps the weight of the lip at the same place across the face (sweep lip flips 262 → 240, s117
+σ 2 5 → 1, s138 σ 2 4 → 1); counted across the face alone, its front took more of the jaw (the
+upper lip followed it 0.11 against ICT's 0.10) and the skin above the corners opened 0.30-0.32 cm
+on ICT (0.27-0.29), though the generated heads' widest edge fell from 0.45-0.47 to 0.33-0.36 cm."""
 LOWER_LIP_REACH = 1.0
 """The lower lip's rises from CORNER_JAW to 1 over this × half the mouth width: all the way to the
 mouth's middle, so no edge across the lower lip opens wide near a corner. Its distance from a corner
@@ -124,7 +129,10 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
     # width, so the opening is a lens and the corners never tear.
     corners = head.landmark_positions(["mouth_corner_L", "mouth_corner_R"])
     half_width = 0.5 * float(np.linalg.norm(corners[0] - corners[1]))
-    reach = np.linalg.norm(v[:, None] - corners[None], axis=2).min(axis=1) / half_width
+    offsets = v[:, None] - corners[None]  # (n, 2, 3) from each mouth corner
+    across = np.linalg.norm(offsets[..., :2], axis=2).min(axis=1) / half_width  # (n,) half widths
+    offsets[..., 2] = np.maximum(offsets[..., 2], 0.0)
+    ahead = np.linalg.norm(offsets, axis=2).min(axis=1) / half_width  # depth counted in front only
     alar, pogonion, menton, tragion = head.landmark_positions(
         ["alar_base_L", "pogonion", "menton", "tragion_L"]
     )
@@ -150,11 +158,8 @@ def skin_weights(head: Head, jaw_pivot: np.ndarray) -> sp.csr_matrix:
         fixed[ids] = True
     for ids in (regions["chin"], core, lower):
         fixed[ids], value[ids] = True, 1.0
-    across = (
-        np.linalg.norm(v[lower, None, :2] - corners[None, :, :2], axis=2).min(axis=1) / half_width
-    )  # (k,)
-    value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(CORNER_CORE, LOWER_LIP_REACH, across))
-    value[upper] = CORNER_JAW * (1.0 - smoothstep(CORNER_CORE, UPPER_LIP_REACH, reach[upper]))
+    value[lower] = 1.0 - (1.0 - CORNER_JAW) * (1.0 - smoothstep(CORNER_CORE, LOWER_LIP_REACH, across[lower]))
+    value[upper] = CORNER_JAW * (1.0 - smoothstep(CORNER_CORE, UPPER_LIP_REACH, ahead[upper]))
     free = np.zeros(n, dtype=bool)
     free[skin] = ~fixed[skin]
     harmonic = smooth_field(value, v, skin_faces, HARMONIC_LENGTH_REL * scale, free=free)
