@@ -171,7 +171,7 @@ def test_lips_whose_margin_is_missed_keep_their_sides(ict):
     """An identity at σ 3 (s4, a calibration head of the sweep) whose lower margin is not found
     beside the mouth's middle (the lower lip rises behind the upper lip's edge): the geodesic split of
     the lips gave those stretches of the lower lip, and the chin below them, the upper lip's side,
-    and ICT's jaw drop tore the lower lip open by 1.02 cm. Each lip's front now seeds its side too
+    and ICT's jaw drop tore the lower lip open by 1.02 cm. Each lip's front now seeds its side
     (``fit.sides.lip_seeds``)."""
     rig = identity_rig(4, 3.0)
     assert widest_at_icts_jaw_drop(rig, ict, ict_face_faces(rig.mesh, ict[1])) < 0.45  # cm; 0.38
@@ -195,8 +195,7 @@ def test_a_lower_lip_whose_hidden_top_looks_like_the_upper_margin_keeps_its_side
     upper lip: its rim there points down, as the upper lip's underside does, so it was taken for
     the upper margin, and the lower lip's middle took the upper lip's side (jaw 0.65 beside the
     lip's 0.84): ICT's jaw drop opened it by 0.59 cm (1.96 before the lips' fronts seeded their
-    sides). A margin seed now goes to the other side when that side's front is clearly nearer along
-    the skin (``fit.sides.SEED_SIDE_RATIO``)."""
+    sides). The lips' sides are now seeded by their fronts alone (``fit.sides.lip_seeds``)."""
     rig = identity_rig(103, 3.0)
     assert widest_at_icts_jaw_drop(rig, ict, ict_face_faces(rig.mesh, ict[1])) < 0.45  # cm; 0.39
 
@@ -220,6 +219,25 @@ def test_the_lips_inner_surfaces_ride_the_jaw_as_their_fronts_do(ict, seed, befo
     dropped = engine.deform(expression_pose(rig, "jaw_drop"))
     lips = lip_faces(rig, ict_face_faces(rig.mesh, ict[1]))
     assert int(triangle_flips(rest, dropped, lips).sum()) <= 1  # 0 and 1 measured
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_a_lower_lip_rising_behind_the_upper_lips_edge_keeps_its_inner_surface(ict):
+    """An identity at σ 3 (s112, a check head of the sweep) whose lower lip rises 5 mm behind the
+    upper lip's edge: no lower margin is found there, and the upper margin's seeds, along the upper
+    lip's edge, lay nearer the lower lip's inner surface (through the mouth) than the lower lip's
+    front did (over its hidden top), so that surface took the upper lip's jaw weight and the
+    library's jaw drop turned 18 of its triangles over. Seeded by the lips' fronts alone, it keeps
+    the lower lip's side."""
+    from mimetic.animate.expressions import expression_pose
+    from mimetic.quality import lip_faces, triangle_flips
+
+    rig = identity_rig(112, 3.0)
+    engine = make_engine(rig, "wire")
+    rest = engine.deform(np.array([c.default for c in rig.channels]))
+    dropped = engine.deform(expression_pose(rig, "jaw_drop"))
+    lips = lip_faces(rig, ict_face_faces(rig.mesh, ict[1]))
+    assert int(triangle_flips(rest, dropped, lips).sum()) <= 1  # 0 measured
 
 
 @pytest.mark.filterwarnings("ignore")
