@@ -114,6 +114,17 @@ def widest_at_icts_jaw_drop(rig, ict, faces: np.ndarray) -> float:
     return edge_stretch(rest, match.vertices, faces).widest
 
 
+def jaw_drop_lip_flips(rig, meta: dict) -> int:
+    """Lip triangles (on ICT's face) the library's ``jaw_drop`` turns over on ``rig`` (wire engine)."""
+    from mimetic.animate.expressions import expression_pose
+    from mimetic.quality import lip_faces, triangle_flips
+
+    engine = make_engine(rig, "wire")
+    rest = engine.deform(np.array([c.default for c in rig.channels]))
+    dropped = engine.deform(expression_pose(rig, "jaw_drop"))
+    return int(triangle_flips(rest, dropped, lip_faces(rig, ict_face_faces(rig.mesh, meta))).sum())
+
+
 def closed_lid_gaps(rig):
     """Each eye's ``LidGap`` (L, R) with both upper lids at their channel's maximum (wire engine)."""
     from mimetic.quality import closed_lids_pose, find_lid_margins, lid_gap
@@ -210,15 +221,8 @@ def test_the_lips_inner_surfaces_ride_the_jaw_as_their_fronts_do(ict, seed, befo
     lip's distance is now taken across the face and the upper lip's counts depth only in front of
     the corners (``bones.LOWER_LIP_REACH``, ``UPPER_LIP_REACH``): the weight holds along the inner
     surfaces, as the jaw and the skull carry them."""
-    from mimetic.animate.expressions import expression_pose
-    from mimetic.quality import lip_faces, triangle_flips
-
-    rig = identity_rig(seed, 2.0)
-    engine = make_engine(rig, "wire")
-    rest = engine.deform(np.array([c.default for c in rig.channels]))
-    dropped = engine.deform(expression_pose(rig, "jaw_drop"))
-    lips = lip_faces(rig, ict_face_faces(rig.mesh, ict[1]))
-    assert int(triangle_flips(rest, dropped, lips).sum()) <= 1  # 0 and 1 measured
+    flips = jaw_drop_lip_flips(identity_rig(seed, 2.0), ict[1])
+    assert flips <= 1, f"{flips} lip triangles turned over ({before} before)"  # 0 and 1 measured
 
 
 @pytest.mark.filterwarnings("ignore")
@@ -229,15 +233,7 @@ def test_a_lower_lip_rising_behind_the_upper_lips_edge_keeps_its_inner_surface(i
     front did (over its hidden top), so that surface took the upper lip's jaw weight and the
     library's jaw drop turned 18 of its triangles over. Seeded by the lips' fronts alone, it keeps
     the lower lip's side."""
-    from mimetic.animate.expressions import expression_pose
-    from mimetic.quality import lip_faces, triangle_flips
-
-    rig = identity_rig(112, 3.0)
-    engine = make_engine(rig, "wire")
-    rest = engine.deform(np.array([c.default for c in rig.channels]))
-    dropped = engine.deform(expression_pose(rig, "jaw_drop"))
-    lips = lip_faces(rig, ict_face_faces(rig.mesh, ict[1]))
-    assert int(triangle_flips(rest, dropped, lips).sum()) <= 1  # 0 measured
+    assert jaw_drop_lip_flips(identity_rig(112, 3.0), ict[1]) <= 1  # 0 measured
 
 
 @pytest.mark.filterwarnings("ignore")
