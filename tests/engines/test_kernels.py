@@ -127,3 +127,46 @@ def test_blend_skinning_and_channel_offsets_match_scipy():
     values = np.array([0.0, 0.5, 0.0, 1.0, 0.25, 0.0])
     offsets = kernels.channel_offsets(creases.indptr, creases.indices, creases.data, values, 3 * n)
     np.testing.assert_array_equal(offsets, creases.T @ values)
+
+
+@pytest.mark.parametrize("own", [True, False])
+def test_sculpt_lids_is_the_eyeballs_sculptor_compiled(own):
+    """The chain's compiled sculptor moves lid points as ``Eyeball.sculpt`` does, on an eye with a
+    cornea of its own (tilted off the gaze, 10 % proud) and on the generic one, turned as a gaze turns."""
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    from mimetic.head.parts import CORNEA_BULGE, IRIS_ANGLE
+    from mimetic.rig.anatomy.eyeball import FORWARD_STEPS, FORWARD_TOL_REL, GRID_STEP_RAD, REACH_RAD, Eyeball
+
+    rng = np.random.default_rng(3)
+    centre, radius = np.array([3.1, 3.4, 8.2]), 1.4
+    ball = trimesh.creation.icosphere(subdivisions=5)
+    unit = ball.vertices / np.linalg.norm(ball.vertices, axis=1, keepdims=True)
+    axis = Rotation.from_euler("xy", [-0.1, 0.12]).apply([0.0, 0.0, 1.0])
+    angle = np.arccos(np.clip(unit @ axis, -1.0, 1.0))
+    bulge = 1.0 + 0.1 * np.cos(np.minimum(angle / 0.5, 1.0) * np.pi / 2) ** 2
+    gaze = np.array([0.0, -0.1, 1.0])
+    faces = ball.faces if own else None
+    eye = Eyeball.of(centre, gaze, radius, centre + radius * unit * bulge[:, None], faces)
+    assert (eye.radii is not None) == own
+    transform = np.eye(4)
+    transform[:3, :3] = Rotation.from_euler("xy", [0.2, -0.15]).as_matrix()
+    transform[:3, 3] = transform[:3, :3] @ -centre + centre  # turned about its centre
+    # lid points over the front of the eye, some inside it, with clearances from rest heights
+    directions = rng.normal(size=(400, 3)) * [0.5, 0.5, 0.0] + [0.0, 0.0, 1.0]
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    points = centre + radius * rng.uniform(0.95, 1.3, size=(400, 1)) * directions
+    keep = np.ascontiguousarray(eye.rest_clearance(points, 0.005, 0.2))
+    keep[np.isneginf(keep)] = 0.005
+    moved = centre + (points - centre) @ transform[:3, :3].T * 0.97  # closing in on the eye
+    expected = eye.sculpt(moved, keep, transform)
+    assert np.abs(expected - moved).max() > 0.01  # the sculptor pushed points out
+    v = np.concatenate([moved, [[0.0, 0.0, 0.0]]])  # a row it is not asked to move
+    kernels.sculpt_lids(
+        v, np.arange(400), centre, np.ascontiguousarray(transform[:3, :3]), eye.axes, radius, keep,
+        np.zeros((0, 0)) if eye.radii is None else eye.radii, eye.grid[0], GRID_STEP_RAD, REACH_RAD,
+        eye.excess, IRIS_ANGLE, CORNEA_BULGE, FORWARD_STEPS, FORWARD_TOL_REL,
+    )  # fmt: skip
+    np.testing.assert_allclose(v[:400], expected, rtol=0, atol=1e-9 * radius)
+    np.testing.assert_array_equal(v[400], 0.0)

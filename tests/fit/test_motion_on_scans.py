@@ -309,6 +309,24 @@ def test_lids_close_where_the_front_sees_an_edge_the_rim_missed():
         assert shown.max() < 0.2 and shown.mean() < 0.05  # cm; at most 0.45 and 0.21, on average 0.10 before
 
 
+def test_a_closed_lid_passes_over_a_cornea_bulging_more_than_the_generic_eyes():
+    """An identity (s145 σ 3, a check head of the sweep) whose corneas rise 9 % out of the sclera's
+    sphere, off the eye bone's axis: the sculptor held the lids off the built-in head's 5 % cornea
+    about that axis, the closed lid passed through the real one, and its pupil showed through the
+    middle of the lid (0.46-0.55 cm of eyeball seen). The sculptor now reads each eye's own surface
+    (``mimetic.rig.anatomy.eyeball``)."""
+    from mimetic.quality import closed_lids_pose, seen_eyeball
+
+    rig = identity_rig(145, 3.0)
+    closed = make_engine(rig, "wire").deform(closed_lids_pose(rig))
+    for side in "LR":
+        shown = seen_eyeball(rig, closed, side)
+        middle = shown[len(shown) // 5 : len(shown) - len(shown) // 5]
+        assert (
+            middle.max() < 0.15 and middle.mean() < 0.06
+        )  # cm; at most 0.46 and 0.55, 0.14-0.18 on average before
+
+
 def test_the_lips_bulge_as_one_in_anger_and_a_pucker(ict):
     """An identity (s110 σ1, a check head of the sweep) whose lips meet at the corners in slivers a
     tenth of a millimetre across: the lips' masses bulged along each vertex's own normal there, and

@@ -36,11 +36,13 @@ from mimetic.engines.kernels import (
     bridged_margin,
     channel_offsets,
     least_opening,
+    sculpt_lids,
     triangle_heights,
 )
 from mimetic.engines.muscles import LID_RIGID_WEIGHT
 from mimetic.engines.skinning import IDENTITY, bone_transforms
-from mimetic.head.parts import eyeball_profile
+from mimetic.head.parts import CORNEA_BULGE, IRIS_ANGLE
+from mimetic.rig.anatomy.eyeball import FORWARD_STEPS, FORWARD_TOL_REL, GRID_STEP_RAD, REACH_RAD, Eyeball
 from mimetic.rig.anatomy.lids import (
     LID_BRIDGE_REL,
     LID_CLEARANCE_REL,
@@ -370,23 +372,18 @@ class Chain:
                     ids.append(column.indices[column.data >= LID_SCULPTED_WEIGHT])
             ids = np.unique(np.concatenate(ids)).astype(np.int64)
             bone = rig.bone(f"eye_{side}")
-            # only lid vertices clear of the eyeball at rest (the conjunctiva skirt is tucked inside);
-            # each keeps its rest height over the eyeball, up to LID_THICKNESS_REL
-            dist, limit = self._eyeball_clearance(v[ids], bone.head, bone.tail - bone.head)
-            outside = dist >= limit
-            height = np.minimum(dist - limit, LID_THICKNESS_REL * rig.scale)[outside]
-            self.lids.append((ids[outside], rig.bone_index(f"eye_{side}"), bone.head, bone.tail, height))
+            part = rig.mesh.parts.get(f"eye_{side}", np.zeros(0, np.int64))
+            radius = float(np.linalg.norm(bone.tail - bone.head))
+            eye = Eyeball.of(bone.head, bone.tail - bone.head, radius, v, rig.mesh.faces[part])
+            # each lid vertex keeps its rest height over the eyeball, up to LID_THICKNESS_REL (the
+            # conjunctiva skirt tucked inside is left alone)
+            keep = eye.rest_clearance(v[ids], SCULPTOR_MARGIN_REL * rig.scale, LID_THICKNESS_REL * rig.scale)
+            sculpted = np.isfinite(keep[:, 0])
+            radii = np.zeros((0, 0)) if eye.radii is None else eye.radii
+            index = rig.bone_index(f"eye_{side}")
+            self.lids.append((ids[sculpted], index, eye, np.ascontiguousarray(keep[sculpted]), radii))
         self.accessories = anatomy.accessories
         self.lid_contacts = prepare_lid_contacts(rig, self.weights)
-
-    def _eyeball_clearance(self, points: np.ndarray, centre: np.ndarray, gaze: np.ndarray) -> tuple:
-        """Distances (k,) of points from the eye centre and the sculptor's limit (k,) for each."""
-        radius = np.linalg.norm(gaze)
-        d = points - centre
-        dist = np.linalg.norm(d, axis=1)
-        angle = np.arccos(np.clip(d @ gaze / np.maximum(dist * radius, 1e-30), -1.0, 1.0))
-        limit = radius * eyeball_profile(angle) + SCULPTOR_MARGIN_REL * self.rig.scale
-        return dist, limit
 
     def _skull_height(self, points: np.ndarray) -> np.ndarray:
         """The skull surface's height (k,) under ``points`` (k, 3), NaN outside it: the interpolator's
@@ -436,16 +433,17 @@ class Chain:
             v[self.lip_pairs[crossed, 1], 1] = mid
         for eye in self.lid_contacts:  # the upper lid's columns stop on the lower margin
             v = keep_lids_apart(eye, v, before, transforms, columns=True)
-        for ids, bone, rest_centre, rest_tip, height in self.lids:
-            # sculptor: lids never inside the eyeball (its profile, the cornea included), and no
-            # thinner over it than at rest (skinning's blend shortens a turning lid's radius)
+        for ids, bone, eye, keep, radii in self.lids:
+            # sculptor: lids never inside the eyeball (its own surface, the cornea included), and no
+            # thinner over it than at rest (skinning's blend shortens a turning lid's radius);
+            # ``Eyeball.sculpt``, compiled
             m = transforms[bone]
-            centre = m[:3, :3] @ rest_centre + m[:3, 3]
-            dist, limit = self._eyeball_clearance(v[ids], centre, m[:3, :3] @ (rest_tip - rest_centre))
-            limit = limit + height
-            inside = dist < limit
-            d = v[ids[inside]] - centre
-            v[ids[inside]] = centre + d * (limit[inside] / dist[inside])[:, None]
+            turn = np.ascontiguousarray(m[:3, :3])
+            centre = turn @ eye.centre + m[:3, 3]
+            sculpt_lids(
+                v, ids, centre, turn, eye.axes, eye.radius, keep, radii, eye.grid[0], GRID_STEP_RAD,
+                REACH_RAD, eye.excess, IRIS_ANGLE, CORNEA_BULGE, FORWARD_STEPS, FORWARD_TOL_REL,
+            )  # fmt: skip
         for eye in self.lid_contacts:  # then every contact vertex by itself (and the tucked skirt)
             v = keep_lids_apart(eye, v, before, transforms, columns=False)
         return ride(self.accessories, self.rig.mesh.vertices, v, transforms) if len(self.accessories) else v

@@ -24,17 +24,18 @@ lids):
   in the eye frame at the vertex's own ``u`` (``mimetic.engines.chain.Chain``): the upper lid
   yields, the lower stays. The eye is the sclera's sphere (``mimetic.mesh.openings.eyeball``), on a
   rig without one the sphere through the eye part or the lid regions.
-* **Closing weights** (``closing_weights``): the upper-lid bone weight of each column of the
-  visible upper margin is the one whose skinning (as the engines skin, eyeball sculptor included)
-  at the closing angle (the ``eyelid_upper`` channel's maximum) brings it onto that line; those
-  weights are smoothed along the margin (a smoothing spline in ``u``, never below the columns' own
-  weights), and every other upper-lid vertex keeps its share of its column's margin weight, but
-  never more than brings the upper margin the front sees onto the lower margin the front sees. A
-  partial closure (a wink) is then a smooth curve, and a skinned export without the contact closes
-  too. Given the eyeball, the closed lid is then *looked at* from the front (``seen_eye``): where
-  eyeball still shows down to the lower margin, the lid vertex on the edge of what shows (near the
-  rim) joins the margin and the weights are solved again, keeping the pass whose widest open column
-  shows least.
+* **Closing weights** (``closing_weights``): the upper-lid bone weight of each column of the visible
+  upper margin is the one whose skinning (as the engines skin, eyeball sculptor included, on the
+  generic eyeball: the sculptor's push out of an eye's own cornea moves no margin in the eye's
+  frame, ``mimetic.rig.anatomy.eyeball``) at the closing angle (the ``eyelid_upper`` channel's
+  maximum) brings it onto that line; those weights are smoothed along the margin (a smoothing spline
+  in ``u``, never below the columns' own weights), and every other upper-lid vertex keeps its share
+  of its column's margin weight, but never more than brings the upper margin the front sees onto the
+  lower margin the front sees. A partial closure (a wink) is then a smooth curve, and a skinned
+  export without the contact closes too. Given the eyeball, the closed lid is then *looked at* from
+  the front (``seen_eye``): where eyeball still shows down to the lower margin, the lid vertex on
+  the edge of what shows (near the rim) joins the margin and the weights are solved again, keeping
+  the pass whose widest open column shows least.
 * **Pivot** (``closing_pivot``, used by the transfer): an opening taller than the closing angle can
   close turning about the eye's centre has its upper lid turn about a point set back behind it, so
   the margin travels farther and slides over the eyeball.
@@ -55,7 +56,6 @@ import scipy.sparse as sp
 from scipy.interpolate import make_smoothing_spline
 from scipy.sparse.csgraph import connected_components as graph_components
 
-from mimetic.head.parts import eyeball_profile
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.geometry import connected_components, edges_unique
 from mimetic.mesh.openings import (
@@ -70,6 +70,7 @@ from mimetic.mesh.openings import (
     seen_eye,
     skin_faces,
 )
+from mimetic.rig.anatomy.eyeball import Eyeball
 
 __all__ = [
     "LID_BRIDGE_REL",
@@ -84,12 +85,10 @@ __all__ = [
     "eye_frame",
     "eye_sphere",
     "eyeball_sphere",
-    "eyeball_surface",
     "find_lid_contacts",
     "gaze_rim",
     "lid_rims",
     "lower_line",
-    "sculpt_lids",
 ]
 
 LID_CLEARANCE_REL = 0.0002
@@ -546,32 +545,6 @@ def find_lid_contacts(
     return tuple(out)
 
 
-def eyeball_surface(
-    points: np.ndarray, centre: np.ndarray, gaze: np.ndarray, radius: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Distances (k,) of ``points`` (k, 3) from the eye's ``centre`` and the eyeball's radius (k,) in
-    their directions (its profile, the cornea included, ``mimetic.head.parts.eyeball_profile``).
-    ``gaze`` (3,) is a unit vector."""
-    d = points - centre
-    dist = np.linalg.norm(d, axis=1)
-    angle = np.arccos(np.clip(d @ gaze / np.maximum(dist, 1e-300), -1.0, 1.0))
-    return dist, radius * eyeball_profile(angle)
-
-
-def sculpt_lids(
-    points: np.ndarray, centre: np.ndarray, gaze: np.ndarray, radius: float, clearance: float | np.ndarray
-) -> np.ndarray:
-    """``points`` (k, 3) pushed radially out of the eyeball to ``clearance`` (a float or (k,); -inf:
-    left alone) outside it: the engines' eyelid sculptor. ``gaze`` (3,) is a unit vector."""
-    dist, surface = eyeball_surface(points, centre, gaze, radius)
-    limit = surface + clearance
-    inside = dist < limit
-    out = points.copy()
-    d = points[inside] - centre
-    out[inside] = centre + d * (limit[inside] / np.maximum(dist[inside], 1e-300))[:, None]
-    return out
-
-
 def lower_line(points: np.ndarray, span: float, column: float) -> tuple[np.ndarray, np.ndarray]:
     """(u, v), each (j,), of the line the upper lid closes onto: the lower margin (j, 3 in the eye
     frame) sorted by u, each point raised to the highest chord between two margin points around it
@@ -715,6 +688,10 @@ def closing_weights(
     if rims is None or len(rims.upper_margin[0]) < MIN_MARGIN or len(rims.lower[0]) < MIN_MARGIN:
         return out
     margin, lower = rims.upper_margin[0], rims.lower[0]
+    # the generic eyeball: the engines push a lid forward out of the eye's own surface, which moves
+    # no margin in the eye's frame (``mimetic.rig.anatomy.eyeball``); solved against the eye's own,
+    # the passes by sight below chose other edges (ICT identity s144 σ 2: 0.09 → 0.12 cm seen)
+    eye = Eyeball.of(centre, gaze, radius)
 
     def line(ids: np.ndarray) -> np.ndarray:
         """The line (j, 2) (u, v) the contact stops the lid on over the lower margin ``ids``: aiming
@@ -731,14 +708,11 @@ def closing_weights(
 
     def skinned(ids: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Where the vertices ``ids`` (k,) go at the closing angle with lid weights ``w`` (k,), skinned
-        as the engines skin (sculptor included), (k, 3)."""
+        as the engines skin (sculptor included, on the generic eyeball), (k, 3)."""
         p = vertices[ids]
         swing = (p - pivot) @ turn.T + pivot - p  # (k, 3) where a full weight takes each
         # the sculptor keeps a lid vertex clear of the eyeball at rest at its rest height, up to thickness
-        dist, surface = eyeball_surface(p, centre, gaze, radius)
-        height = dist - surface - clearance  # < 0: inside the eyeball at rest, never sculpted
-        keep = np.where(height >= 0, clearance + np.minimum(height, thickness), -np.inf)
-        return sculpt_lids(p + w[:, None] * swing, centre, gaze, radius, keep)
+        return eye.sculpt(p + w[:, None] * swing, eye.rest_clearance(p, clearance, thickness))
 
     def landing(ids: np.ndarray, low: np.ndarray) -> np.ndarray:
         """The lid weight (k,) that brings each vertex of ``ids`` onto the line ``low`` (j, 2) (u, v)
