@@ -140,3 +140,46 @@ def test_eyeball_pieces_turn_with_the_eye_and_films_over_it_do_not():
     corner = _part(shell, (d[:, 0] < -0.5 * radius) & (np.abs(d[:, 1]) < 0.3 * radius))
     for piece in (opening, lower, corner):
         assert not _on(piece, radius)
+
+
+def test_a_mouth_modelled_shut_is_cut_along_the_lips_line_and_an_open_one_is_not():
+    """A sheet whose lips meet along y = 0 between corners at x = ±1 (a mouth sealed by faces, as
+    MediaPipe's canonical mesh): the faces from above the line to below it, between the corners, seal
+    it; beside the corners nothing is cut; with a surface behind the lips (a mouth's insides), or a
+    slot between them, there is no seal."""
+    from mimetic.fit.sides import CORNER_FREE_REL, seal_faces
+    from mimetic.mesh.openings import Opening
+
+    vertices, faces = grid(41, 0.1)  # 4 × 4 cm
+    x = np.linspace(-1.0, 1.0, 21)
+    line = np.column_stack([x, np.full_like(x, 0.05), np.zeros_like(x)])  # between two rows of vertices
+    mouth = Opening(line, line)
+    sealed = seal_faces(vertices, faces, mouth)
+    centres = vertices[faces].mean(axis=1)
+    inset = 1.0 - 2.0 * CORNER_FREE_REL  # the corners' inset, along the 2 cm line
+    spanning = (vertices[faces, 1].max(axis=1) > 0.05) & (vertices[faces, 1].min(axis=1) < 0.05)
+    inside = np.abs(centres[:, 0]) < inset - 0.1
+    assert sealed[spanning & inside].all() and sealed.sum() >= 2 * 14
+    assert not sealed[~spanning].any() and not sealed[np.abs(centres[:, 0]) > inset + 0.1].any()
+    # with a surface 1 cm behind the lips (a mouth's insides), the lips are a mouth's, not a seal
+    inside = np.concatenate([vertices, vertices - [0.0, 0.0, 1.0]])
+    assert not seal_faces(inside, np.concatenate([faces, faces + len(vertices)]), mouth).any()
+    slot = faces[~spanning | (np.abs(centres[:, 0]) > 1.0)]  # the mouth open: no face across it
+    assert not seal_faces(vertices, slot, mouth).any()
+
+
+def test_the_lips_of_mediapipes_sealed_mask_keep_their_jaw_weights():
+    """MediaPipe's canonical mesh closes its mouth with faces from the upper lip's inner edge to the
+    lower lip's: the lips' split and the jaw weight's diffusion ran through them, and the upper lip's
+    inner edge took the jaw weight 0.5-0.6 (the lower lip's 0.5-0.84; a jaw drop opened it 1.05 cm
+    from the row above, and the upper lip followed the jaw 0.22)."""
+    from mimetic.fit.pipeline import rig_head
+    from mimetic.testing import mediapipe_canonical, mediapipe_landmarks, require_shared_data
+
+    require_shared_data("mediapipe/canonical.npz")
+    mesh = mediapipe_canonical()
+    rig = rig_head(mesh, mediapipe_landmarks(mesh)).rig
+    jaw = rig.skin_weights.toarray()[:, rig.bone_index("jaw")]
+    upper_middle, lower_middle = [81, 82, 13, 312, 311], [178, 87, 14, 317, 402]  # the inner lip edges
+    assert jaw[upper_middle].max() < 0.2 and jaw[13] < 0.1  # 0.51-0.60 before
+    assert jaw[lower_middle].min() > 0.65 and jaw[14] > 0.85  # 0.66-0.84 before

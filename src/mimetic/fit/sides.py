@@ -24,6 +24,10 @@ LIP_FRONT_REL = (0.12, 0.18)
 """Each lip's front seeds lie this far (× the mouth's width) above or below the opening's line
 (``lip_seeds``): about the vermilion's border, set from ICT's lip heights (upper 0.17, lower 0.19 ×
 its 5.1 cm mouth width), not fitted on any head's motion."""
+SEAL_DEPTH_REL, SEAL_BAND_REL = 0.1, 0.1
+"""A mouth with a surface this far (× its width) behind its lips' line, within this of that line up or
+down between the corners, has insides (``seal_faces``): ICT's lips' inner surfaces and cavity run 2 cm
+back; MediaPipe's mask has nothing behind its lips."""
 LIP_FRONT_INSET = 0.15
 """... and this far (× the width) in from either corner, where the lips' fronts meet."""
 
@@ -54,6 +58,29 @@ def lip_seeds(
     return used[front & (above > near) & (above < far)], used[front & (below > near) & (below < far)]
 
 
+def seal_faces(points: np.ndarray, faces: np.ndarray, mouth: Opening) -> np.ndarray:
+    """(m,) bool: the ``faces`` (m, 3) of ``points`` (n, 3) that close a mouth modelled shut.
+
+    A mouth is modelled shut when nothing lies behind its lips (no inner surface, no cavity: a
+    mask such as MediaPipe's canonical mesh, or a scan); its sealing faces are those with a vertex
+    above the lips' line (``mouth``'s upper margin, seen from the front) and one below it, between
+    the corners (``CORNER_FREE_REL`` in from each). A head with a mouth inside has none: its lips
+    curl over that line where they touch (ICT's), and they are the lips' own faces. MediaPipe's
+    seal runs from the upper lip's inner edge to the lower's, 0.55 cm apart; the lips' split and the
+    jaw weight's diffusion ran through it and handed the upper lip's inner edge the lower lip's side
+    (its jaw weight 0.5-0.6)."""
+    above = points[:, 1] - np.interp(points[:, 0], mouth.upper[:, 0], mouth.upper[:, 1])
+    below = np.interp(points[:, 0], mouth.lower[:, 0], mouth.lower[:, 1]) - points[:, 1]
+    depth = np.interp(points[:, 0], mouth.upper[:, 0], mouth.upper[:, 2]) - points[:, 2]
+    between = mouth.between_corners(points, CORNER_FREE_REL)
+    used = np.zeros(len(points), dtype=bool)
+    used[faces.ravel()] = True
+    near_line = (above < SEAL_BAND_REL * mouth.width) & (below < SEAL_BAND_REL * mouth.width)
+    if (used & between & near_line & (depth > SEAL_DEPTH_REL * mouth.width)).any():
+        return np.zeros(len(faces), dtype=bool)  # the lips have insides: a mouth, not a seal
+    return (between & (above > 0))[faces].any(axis=1) & (between & (below > 0))[faces].any(axis=1)
+
+
 def sides_of(
     points: np.ndarray,
     faces: np.ndarray,
@@ -74,8 +101,10 @@ def sides_of(
     if feature == "mouth":
         seeds = lip_seeds(points, faces, normals, opening)
         ref_reach += LIP_FRONT_REL[1] * opening.width  # every sided user vertex finds its side there
+        split = faces[~seal_faces(points, faces, opening)]  # the lips of a mouth modelled shut part
     else:
         seeds = opening_margins(points, faces, {feature: opening})[feature]
-    user_side = opening_sides(points, faces, *seeds, reach)
+        split = faces
+    user_side = opening_sides(points, split, *seeds, reach)
     user_side[~opening.between_corners(points, CORNER_FREE_REL)] = 0
     return user_side, opening_sides(ref_vertices, ref_faces, *ref_margins, ref_reach)

@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from mimetic.fit.parts import RIGID_PARTS, separate_parts, soft_mouth_jaw
-from mimetic.fit.sides import sides_of
+from mimetic.fit.sides import seal_faces, sides_of
 from mimetic.fit.similarity import Similarity, nearest_axis_rotation
 from mimetic.head.shape import smoothstep
 from mimetic.mesh.closest import ClosestPoints, closest_points
@@ -327,7 +327,10 @@ def transfer_rig(
         weights[ids, reference.bone_index("head")] = 1.0 - jaw
         weights[ids, reference.bone_index("jaw")] = jaw
     inside = in_rigid | soft_mouth | cavity
-    outer_faces = user.faces[~inside[user.faces].any(axis=1)]
+    outer = ~inside[user.faces].any(axis=1)
+    if openings and "mouth" in openings:  # nor across a mouth modelled shut
+        outer &= ~seal_faces(in_model, user.faces, openings["mouth"])
+    outer_faces = user.faces[outer]
     scale = reference.scale * to_rig.scale  # the head height, rig units
     neck = in_model[:, 1] < reference.landmark_positions(["menton"])[0][1]
     weights = _smooth_jaw(
