@@ -32,6 +32,15 @@ LIP_FRONT_INSET = 0.15
 """... and this far (× the width) in from either corner, where the lips' fronts meet."""
 
 
+def _from_lips(points: np.ndarray, mouth: Opening) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How far each of ``points`` (k, 3) lies above ``mouth``'s upper line, below its lower line and
+    behind its upper line, seen from the front at its own x: three (k,) arrays, mesh units."""
+    above = points[:, 1] - np.interp(points[:, 0], mouth.upper[:, 0], mouth.upper[:, 1])
+    below = np.interp(points[:, 0], mouth.lower[:, 0], mouth.lower[:, 1]) - points[:, 1]
+    depth = np.interp(points[:, 0], mouth.upper[:, 0], mouth.upper[:, 2]) - points[:, 2]
+    return above, below, depth
+
+
 def lip_seeds(
     points: np.ndarray, faces: np.ndarray, normals: np.ndarray, mouth: Opening
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -51,9 +60,7 @@ def lip_seeds(
     used = np.flatnonzero(used)
     p = points[used]
     near, far = LIP_FRONT_REL[0] * mouth.width, LIP_FRONT_REL[1] * mouth.width
-    above = p[:, 1] - np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 1])
-    below = np.interp(p[:, 0], mouth.lower[:, 0], mouth.lower[:, 1]) - p[:, 1]
-    depth = np.interp(p[:, 0], mouth.upper[:, 0], mouth.upper[:, 2]) - p[:, 2]
+    above, below, depth = _from_lips(p, mouth)
     front = mouth.between_corners(p, LIP_FRONT_INSET) & (normals[used, 2] > 0.5) & (depth < far)
     return used[front & (above > near) & (above < far)], used[front & (below > near) & (below < far)]
 
@@ -69,9 +76,7 @@ def seal_faces(points: np.ndarray, faces: np.ndarray, mouth: Opening) -> np.ndar
     seal runs from the upper lip's inner edge to the lower's, 0.55 cm apart; the lips' split and the
     jaw weight's diffusion ran through it and handed the upper lip's inner edge the lower lip's side
     (its jaw weight 0.5-0.6)."""
-    above = points[:, 1] - np.interp(points[:, 0], mouth.upper[:, 0], mouth.upper[:, 1])
-    below = np.interp(points[:, 0], mouth.lower[:, 0], mouth.lower[:, 1]) - points[:, 1]
-    depth = np.interp(points[:, 0], mouth.upper[:, 0], mouth.upper[:, 2]) - points[:, 2]
+    above, below, depth = _from_lips(points, mouth)
     between = mouth.between_corners(points, CORNER_FREE_REL)
     used = np.zeros(len(points), dtype=bool)
     used[faces.ravel()] = True
